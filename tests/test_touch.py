@@ -1,0 +1,155 @@
+"""Tests for meshrec.touch: reading, writing and validating touch data."""
+
+import json
+
+import numpy as np
+import pytest
+
+from meshrec import defaults
+from meshrec.touch import TouchData
+
+
+def _curves(seed=0, n=7):
+    rng = np.random.default_rng(seed)
+    return [rng.normal(size=(n, 3)) for _ in range(3)]
+
+
+def test_csv_round_trip(tmp_path):
+    touch = TouchData(curves=_curves())
+    path = tmp_path / "t.csv"
+    touch.to_csv(path)
+    back = TouchData.from_file(path)
+    assert len(back.curves) == 3
+    for a, b in zip(touch.curves, back.curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert back.source == str(path)
+
+
+def test_json_round_trip_keeps_hints(tmp_path):
+    touch = TouchData(curves=_curves(), contact=[1, 2, 3], normal=[0, 0, 2])
+    path = tmp_path / "t.json"
+    touch.to_file(path)
+    back = TouchData.from_file(path)
+    np.testing.assert_array_equal(back.contact, [1, 2, 3])
+    np.testing.assert_allclose(back.normal, [0, 0, 1])
+    for a, b in zip(touch.curves, back.curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_csv_labels_any_integers_and_order(tmp_path):
+    path = tmp_path / "t.csv"
+    rows = ["curve,x,y,z"]
+    for label in (7, 3, 5):
+        for i in range(5):
+            rows.append(f"{label},{label},{i},0")
+    path.write_text("\n".join(rows) + "\n")
+    touch = TouchData.from_csv(path)
+    assert [c[0, 0] for c in touch.curves] == [3.0, 5.0, 7.0]
+    np.testing.assert_array_equal(touch.curves[0][:, 1], np.arange(5))
+
+
+def test_points_labels_and_transform():
+    touch = TouchData(curves=_curves(), contact=[0, 0, 0], normal=[0, 0, 1])
+    assert touch.points.shape == (21, 3)
+    assert touch.n_points == 21
+    np.testing.assert_array_equal(np.bincount(touch.labels), [7, 7, 7])
+    T = np.eye(4)
+    T[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    T[:3, 3] = [1, 2, 3]
+    moved = touch.transformed(T)
+    np.testing.assert_allclose(moved.points, touch.points @ T[:3, :3].T + [1, 2, 3])
+    np.testing.assert_allclose(moved.contact, [1, 2, 3])
+    np.testing.assert_allclose(moved.normal, [0, 0, 1])
+    assert "3 curves" in repr(touch)
+
+
+def test_with_hints():
+    touch = TouchData(curves=_curves()).with_hints(contact=[1, 1, 1])
+    np.testing.assert_array_equal(touch.contact, [1, 1, 1])
+    assert touch.normal is None
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"curves": _curves()[:2]}, "at least 3 curves"),
+        ({"curves": [*_curves()[:2], np.zeros(5)]}, r"curves\[2\] must be \(n, 3\), got \(5,\)"),
+        ({"curves": [*_curves()[:2], np.zeros((4, 3))]}, r"curves\[2\] must have at least 5"),
+        ({"curves": [*_curves()[:2], np.full((5, 3), np.nan)]}, "non-finite point at row 0"),
+        ({"curves": np.zeros((10, 3))}, "sequence of"),
+        ({"curves": 5}, "sequence of"),
+        ({"curves": [*_curves()[:2], [["a", 1, 2]] * 5]}, "array of numbers"),
+        ({"curves": _curves(), "contact": [1, 2]}, r"contact must be \(3,\), got \(2,\)"),
+        ({"curves": _curves(), "contact": "abc"}, "contact must be 3 numbers"),
+        ({"curves": _curves(), "normal": [0, 0, np.inf]}, "normal must be finite"),
+        ({"curves": _curves(), "normal": [0, 0, 0]}, "non-zero"),
+    ],
+)
+def test_validation_errors(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        TouchData(**kwargs)
+
+
+def test_min_points_constant_is_used():
+    curves = [np.zeros((defaults.MIN_POINTS_PER_CURVE, 3))] * defaults.MIN_CURVES
+    assert len(TouchData(curves=curves).curves) == defaults.MIN_CURVES
+
+
+def test_transformed_rejects_bad_matrix():
+    with pytest.raises(ValueError, match=r"T must be a finite \(4, 4\)"):
+        TouchData(curves=_curves()).transformed(np.eye(3))
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "match"),
+    [
+        ("e.csv", "", "empty"),
+        ("h.csv", "a,b,c,d\n0,1,2,3\n", "header must be 'curve,x,y,z'"),
+        ("f.csv", "curve,x,y,z\n0,1,2\n", "line 2 must have 4 fields"),
+        ("n.csv", "curve,x,y,z\n0,1,two,3\n", "line 2 is not numeric"),
+        ("i.csv", "curve,x,y,z\n0,1,nan,3\n", "line 2 has a non-finite value"),
+        ("l.csv", "curve,x,y,z\n0.5,1,2,3\n", "curve label must be an integer"),
+        ("c.csv", "curve,x,y,z\n" + "0,1,2,3\n" * 5, "at least 3 curves"),
+        ("j.json", "{not json", "not valid JSON"),
+        ("k.json", '{"points": []}', "expected an object with a 'curves' list"),
+        ("u.json", '{"curves": [], "extra": 1}', "unknown keys"),
+        ("v.json", '{"curves": 3}', "'curves' must be a list"),
+        ("x.txt", "curve,x,y,z\n", "unknown suffix"),
+    ],
+)
+def test_file_errors(tmp_path, name, content, match):
+    path = tmp_path / name
+    path.write_text(content)
+    with pytest.raises(ValueError, match=match):
+        TouchData.from_file(path)
+
+
+def test_missing_directory_binary_and_non_utf8(tmp_path):
+    with pytest.raises(ValueError, match="no such file"):
+        TouchData.from_file(tmp_path / "missing.csv")
+    folder = tmp_path / "dir.csv"
+    folder.mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        TouchData.from_file(folder)
+    binary = tmp_path / "b.csv"
+    binary.write_bytes(b"\x00\x01\x02garbage")
+    with pytest.raises(ValueError, match="binary content"):
+        TouchData.from_file(binary)
+    latin = tmp_path / "l.csv"
+    latin.write_bytes(b"curve,x,y,z\n0,\xe9,1,2\n")
+    with pytest.raises(ValueError, match="not UTF-8"):
+        TouchData.from_file(latin)
+
+
+def test_to_file_rejects_unknown_suffix(tmp_path):
+    with pytest.raises(ValueError, match=r"must end in \.csv or \.json"):
+        TouchData(curves=_curves()).to_file(tmp_path / "t.txt")
+
+
+def test_json_file_is_plain_json(tmp_path):
+    path = tmp_path / "t.json"
+    TouchData(curves=_curves()).to_json(path)
+    data = json.loads(path.read_text())
+    assert set(data) == {"curves"}
+    assert len(data["curves"]) == 3
+    assert not list(tmp_path.glob(".*.tmp"))
