@@ -20,6 +20,15 @@ SIM_MIN_PLANE_ANGLE_DEG = 35.0
 #: Random contacts tried before simulate gives up (a contact is rejected when a curve
 #: through it is shorter than the requested length, e.g. near the edge of an open patch).
 SIM_MAX_TRIES = 200
+#: A given contact farther than this fraction of sqrt(surface area) from the mesh is refused
+#: (closer ones are snapped onto the mesh).
+SIM_CONTACT_TOLERANCE = 2e-3
+#: Random plane triples tried through a given contact before simulate reports that the
+#: curves through it are too short (some orientations may fit near an open boundary).
+SIM_CONTACT_PLANE_TRIES = 20
+#: Section end points closer than this fraction of the mesh's bounding-box diagonal are the
+#: same vertex of the section polyline.
+SIM_MERGE_FRACTION = 1e-9
 
 # --- local geometry from the curves (the paper's reference [11]) ---------------------------
 #: Degree of the polynomial fitted to each curve, as a graph over its chord direction.
@@ -30,3 +39,56 @@ MIN_POINTS_PER_CURVE = 5
 MIN_CURVES = 3
 #: Two curve tangents closer than this angle (degrees, modulo 180) count as parallel.
 MIN_TANGENT_ANGLE_DEG = 10.0
+
+# --- candidate lookup (Section 2.1) --------------------------------------------------------
+#: Relative tolerance on each principal curvature: |k_mesh - k_data| <= rel * max|k| + abs.
+CANDIDATE_REL_TOL = 0.25
+#: Absolute tolerance on each principal curvature, in units of 1 / (curve half-length).
+CANDIDATE_ABS_TOL = 0.15
+#: Candidates closer than this fraction of the curves' half-length are merged (one basin).
+CANDIDATE_SPACING_FRACTION = 0.5
+#: Most candidates kept per model and side after spreading them over the surface.
+MAX_CANDIDATES = 24
+
+# --- initial phi (Section 2.2.1) -----------------------------------------------------------
+#: Steps of the discretisation of [0, 2 pi) in which every local minimum is bracketed.
+PHI_STEPS = 36
+#: Data points (evenly subsampled) used while searching phi; all points are used later.
+PHI_POINTS = 36
+#: A bracket is refined only if its grid error is within this factor of the best one.
+PHI_REFINE_RATIO = 1.5
+#: Absolute tolerance of the bracket refinement, radians.
+PHI_XTOL = 2e-3
+
+# --- local search on surface charts (Section 2.2.1) and final refinement --------------------
+#: Candidates (best by their phi error) that get a full local search.
+LOCAL_SEARCHES = 8
+#: Chart re-centrings at most per local search.
+MAX_RECENTRES = 6
+#: A re-centring smaller than this fraction of the half-length ends the local search.
+RECENTRE_TOL_FRACTION = 1e-3
+#: Function evaluations allowed for one chart's least-squares solve.
+CHART_MAX_EVALS = 60
+#: Iterations of the paper's steepest descent (reference method) at most.
+STEEPEST_MAX_ITER = 300
+#: Iterations of the final rigid (6-DOF) refinement at most.
+REFINE_MAX_ITER = 30
+#: The final refinement stops when the error improves by less than this fraction.
+REFINE_REL_TOL = 1e-6
+#: Local-search results closer than this fraction of the half-length are the same minimum.
+DUPLICATE_FRACTION = 0.05
+#: The default local-search method: "lm" (least squares on charts) or "steepest" (the paper's).
+SEARCH_METHOD = "lm"
+
+# --- model index: the per-vertex curvature table (Section 2.1) -----------------------------
+#: Radius of libigl's curvature ball as a fraction of sqrt(surface area) of the model, so
+#: that curvature is measured at a fixed fraction of the model's size (the touch curves are
+#: SIM_LENGTH_FRACTION of it long), whatever the mesh resolution.
+CURVATURE_SCALE_FRACTION = 0.02
+#: Smallest curvature ball radius, in mean edge lengths (fewer fails on coarse meshes).
+CURVATURE_MIN_RADIUS = 2
+#: Largest curvature ball radius, in mean edge lengths (the cost grows with its square).
+CURVATURE_MAX_RADIUS = 8
+#: The lookup scales the K axis by 1 / (2 median |H|); below this fraction of 1 / scale
+#: the median |H| counts as zero (a flat model) and 1 / scale is used instead.
+LOOKUP_MIN_H_FRACTION = 1e-6

@@ -63,7 +63,7 @@ def _as_curve(value, index: int) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TouchData:
     """Points sampled by a touch probe along three or more concurrent curves.
 

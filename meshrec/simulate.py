@@ -1,0 +1,751 @@
+"""Simulated touches: three noisy curves cut from a mesh through one contact point.
+
+This follows the simulation protocol of the paper (Section 3.1): pick a point ``p`` on the
+surface, intersect the surface with three planes through ``p``, sample 61 points along each
+intersection curve and add uniform noise within +-0.001 to every coordinate. The curves
+are then moved by a random rigid motion, as if a robot had touched the object somewhere in
+its own frame, so that recognition has to find the pose as well as the contact.
+
+The curves are sections of the *mesh* (not of an analytic surface): each is the connected
+piece through the contact of the polyline where a cutting plane meets the mesh faces,
+resampled at equal arc length along that polyline and centred on the contact, so that the
+middle sample of every noiseless curve is exactly the contact.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import secrets
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from . import defaults
+from .touch import TouchData
+
+__all__ = ["SimulatedTouch", "simulate_touch"]
+
+
+# ---------------------------------------------------------------------------- result type
+@dataclass(frozen=True, eq=False)
+class SimulatedTouch:
+    """A simulated touch together with the ground truth it was made from.
+
+    Attributes
+    ----------
+    touch : TouchData
+        The noisy curves in the touch frame (after the rigid motion); ``touch.contact``
+        and ``touch.normal`` are None, as in a file recorded by a real probe.
+    model : str
+        The model name (file stem, the object's ``name``, or the ``name`` argument), or
+        ``""`` for a bare mesh.
+    contact : (3,) float
+        The true contact, in model coordinates, on the mesh.
+    normal : (3,) float
+        The outward (face-winding) unit normal of the mesh face at the contact, model
+        coordinates.
+    T_touch_model : (4, 4) float
+        The rigid motion applied: touch-frame point = ``T_touch_model @ model point``.
+    T_model_touch : (4, 4) float
+        Its inverse.
+    clean_curves : tuple of (n, 3) float
+        The noiseless curves in model coordinates, each ordered along the curve; the
+        middle row of each is ``contact``.
+    noise : float
+        Half-width of the uniform noise that was added to every coordinate.
+    length : float
+        Arc length of each curve, model units.
+    seed : int or None
+        The integer seed that reproduces this touch (``rng=seed``), or None when a
+        generator was passed in.
+    """
+
+    touch: TouchData
+    model: str
+    contact: np.ndarray
+    normal: np.ndarray
+    T_touch_model: np.ndarray
+    T_model_touch: np.ndarray
+    clean_curves: tuple[np.ndarray, ...]
+    noise: float
+    length: float
+    seed: int | None
+
+    @property
+    def n_points(self) -> int:
+        """Points per curve."""
+        return len(self.clean_curves[0])
+
+    @property
+    def contact_touch(self) -> np.ndarray:
+        """(3,) float: the true contact in the touch frame."""
+        return self.T_touch_model[:3, :3] @ self.contact + self.T_touch_model[:3, 3]
+
+    @property
+    def normal_touch(self) -> np.ndarray:
+        """(3,) float: the true normal in the touch frame."""
+        return self.T_touch_model[:3, :3] @ self.normal
+
+    def truth_dict(self) -> dict:
+        """Return the ground truth as a JSON-ready dictionary.
+
+        Returns
+        -------
+        dict
+            Keys ``model`` (str), ``contact``, ``normal`` (model frame, lists of 3 floats),
+            ``T_touch_model``, ``T_model_touch`` (4x4 nested lists), ``contact_touch``
+            (list of 3 floats), ``noise``, ``length`` (float), ``points`` (int, points
+            per curve) and ``seed`` (int or None).
+        """
+        return {
+            "model": self.model,
+            "contact": [float(v) for v in self.contact],
+            "normal": [float(v) for v in self.normal],
+            "T_touch_model": self.T_touch_model.tolist(),
+            "T_model_touch": self.T_model_touch.tolist(),
+            "contact_touch": [float(v) for v in self.contact_touch],
+            "noise": float(self.noise),
+            "length": float(self.length),
+            "points": int(self.n_points),
+            "seed": None if self.seed is None else int(self.seed),
+        }
+
+    def write(self, touch_path, truth_path=None) -> None:
+        """Write the touch file and the ground-truth JSON.
+
+        Parameters
+        ----------
+        touch_path : str or os.PathLike
+            The touch file, ``.csv`` or ``.json`` (format by suffix, see
+            :meth:`TouchData.to_file`).
+        truth_path : str or os.PathLike, optional
+            The truth JSON (:meth:`truth_dict`). Default: next to the touch file, named
+            ``<stem>.truth.json``.
+
+        Raises
+        ------
+        ValueError
+            If ``touch_path`` does not end in ``.csv`` or ``.json``, or ``truth_path`` is
+            the same file as ``touch_path``.
+        """
+        touch_path = Path(touch_path)
+        if truth_path is None:
+            truth_path = touch_path.with_name(touch_path.stem + ".truth.json")
+        truth_path = Path(truth_path)
+        if truth_path.resolve() == touch_path.resolve():
+            raise ValueError(f"truth_path must differ from touch_path, got {str(truth_path)!r}")
+        self.touch.to_file(touch_path)
+        truth_path.parent.mkdir(parents=True, exist_ok=True)
+        truth_path.write_text(json.dumps(self.truth_dict(), indent=2) + "\n", encoding="utf-8")
+
+    def __repr__(self) -> str:
+        return (
+            f"SimulatedTouch(model={self.model!r}, {len(self.clean_curves)} curves x "
+            f"{self.n_points} points, contact={np.round(self.contact, 6).tolist()}, "
+            f"length={self.length:.6g}, noise={self.noise:g}, seed={self.seed})"
+        )
+
+
+# ---------------------------------------------------------------------------- public entry
+def simulate_touch(
+    mesh,
+    *,
+    contact=None,
+    rng=None,
+    n_points: int = defaults.SIM_POINTS,
+    noise: float = defaults.SIM_NOISE,
+    length: float | None = None,
+    transform: bool = True,
+    name: str | None = None,
+) -> SimulatedTouch:
+    """Simulate a touch: three noisy curves on a mesh through one contact point.
+
+    The mesh is cut by three planes through the contact ``c``. Each plane contains a
+    direction of the tangent plane at ``c`` and is tilted away from containing the normal
+    by a random angle up to ``defaults.SIM_MAX_TILT_DEG``; the three tangent directions
+    are a random base angle plus steps of 60 degrees with jitter, at least
+    ``defaults.SIM_MIN_PLANE_ANGLE_DEG`` apart. The connected piece of each section
+    through ``c`` is resampled at ``n_points`` equal arc-length steps over ``length``,
+    centred on ``c`` (the middle sample is ``c``). Uniform noise in ``[-noise, noise]`` is
+    added to every coordinate (in the model frame, independently per curve) and the curves
+    are then moved by a random rigid motion.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh or str or os.PathLike or object
+        The model: a mesh, a mesh file (loaded with ``trimesh.load(path, force="mesh")``),
+        or any object with ``vertices`` (V, 3), ``faces`` (F, 3) and ``name`` attributes.
+    contact : (3,) float, optional
+        The contact in model coordinates; it is snapped to the closest point of the mesh.
+        Default: a random point, uniform by area (redrawn, up to
+        ``defaults.SIM_MAX_TRIES`` times, while a curve through it is too short).
+    rng : numpy.random.Generator or int or None
+        Randomness, through :func:`numpy.random.default_rng`. With None a fresh seed is
+        drawn and recorded in the result, so every touch can be reproduced.
+    n_points : int
+        Points per curve, odd and at least 5.
+    noise : float
+        Half-width of the uniform noise per coordinate, model units, >= 0.
+    length : float, optional
+        Arc length of each curve, model units. Default
+        ``defaults.SIM_LENGTH_FRACTION * sqrt(mesh area)``.
+    transform : bool
+        Apply a random rigid motion (uniform rotation, translation uniform in
+        ``[-s, s]^3`` with ``s = sqrt(mesh area)``). If False the touch frame is the model
+        frame.
+    name : str, optional
+        The model name to record; overrides the name taken from the file or object.
+
+    Returns
+    -------
+    SimulatedTouch
+
+    Raises
+    ------
+    ValueError
+        If ``n_points`` is not an odd integer >= 5, ``noise`` is negative or not finite,
+        ``length`` is not positive and finite, ``contact`` is not a finite (3,) vector or
+        lies farther than ``defaults.SIM_CONTACT_TOLERANCE * sqrt(area)`` from the mesh,
+        ``rng`` is a negative integer, the mesh file does not exist or the mesh has no
+        area, the curves through a given contact are too short for ``length`` (near an
+        open boundary, or a closed section shorter than ``length``) for every one of
+        ``defaults.SIM_CONTACT_PLANE_TRIES`` plane triples, or no random contact out of
+        ``defaults.SIM_MAX_TRIES`` admits curves of that length.
+    TypeError
+        If ``mesh`` is neither a mesh, a path nor an object with vertices and faces.
+    """
+    n_points = _check_n_points(n_points)
+    noise = _check_noise(noise)
+    if length is not None:
+        length = _check_length(length)
+    if contact is not None:
+        contact = _check_contact(contact)
+    if not isinstance(transform, (bool, np.bool_)):
+        raise ValueError(f"transform must be True or False, got {transform!r}")
+    generator, seed = _make_rng(rng)
+
+    tm, model_name = _resolve_mesh(mesh)
+    if name is not None:
+        model_name = str(name)
+    surface = _Surface(tm)
+    scale = math.sqrt(surface.area)
+    if length is None:
+        length = defaults.SIM_LENGTH_FRACTION * scale
+
+    if contact is not None:
+        c, face, dist = _closest_point(surface, contact)
+        tol = defaults.SIM_CONTACT_TOLERANCE * scale
+        if dist > tol:
+            raise ValueError(
+                f"contact {contact.tolist()} is {dist:.6g} from the mesh, farther than the "
+                f"tolerance {tol:.3g} (defaults.SIM_CONTACT_TOLERANCE * sqrt(area))"
+            )
+        normal = surface.face_normals[face]
+        curves, failure = None, None
+        for _ in range(defaults.SIM_CONTACT_PLANE_TRIES):
+            curves, failure = _cut_curves(surface, c, normal, generator, n_points, length)
+            if curves is not None:
+                break
+        if curves is None:
+            raise ValueError(
+                f"contact {contact.tolist()} (snapped to {c.tolist()}): the curve through it "
+                f"is too short for length={length:.6g}: {failure} "
+                f"(tried {defaults.SIM_CONTACT_PLANE_TRIES} plane orientations)"
+            )
+    else:
+        curves = None
+        for _ in range(defaults.SIM_MAX_TRIES):
+            points, faces = trimesh.sample.sample_surface(tm, 1, seed=generator)
+            c = np.asarray(points[0], dtype=np.float64)
+            normal = surface.face_normals[int(faces[0])]
+            curves, failure = _cut_curves(surface, c, normal, generator, n_points, length)
+            if curves is not None:
+                break
+        if curves is None:
+            raise ValueError(
+                f"length={length:.6g}: none of {defaults.SIM_MAX_TRIES} random contacts on "
+                f"the mesh{f' {model_name!r}' if model_name else ''} has three section curves "
+                f"that long (last: {failure}); give a smaller length"
+            )
+
+    noisy = [cv + generator.uniform(-noise, noise, size=cv.shape) for cv in curves]
+
+    T = _random_rigid(generator, scale) if transform else np.eye(4)
+    T_inv = np.eye(4)
+    T_inv[:3, :3] = T[:3, :3].T
+    T_inv[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    R, t = T[:3, :3], T[:3, 3]
+    touch = TouchData(curves=[cv @ R.T + t for cv in noisy])
+
+    clean = tuple(_frozen(cv) for cv in curves)
+    return SimulatedTouch(
+        touch=touch,
+        model=model_name,
+        contact=_frozen(c),
+        normal=_frozen(normal),
+        T_touch_model=_frozen(T),
+        T_model_touch=_frozen(T_inv),
+        clean_curves=clean,
+        noise=noise,
+        length=float(length),
+        seed=seed,
+    )
+
+
+# ---------------------------------------------------------------------------- validation
+def _check_n_points(n_points) -> int:
+    """Return ``n_points`` as an int, or raise ValueError unless it is odd and >= 5."""
+    if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):
+        raise ValueError(f"n_points must be an odd integer >= 5, got {n_points!r}")
+    n = int(n_points)
+    if n < 5 or n % 2 == 0:
+        raise ValueError(f"n_points must be an odd integer >= 5, got {n}")
+    return n
+
+
+def _as_float(value, name: str) -> float:
+    """Return ``value`` as a float or raise ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a number, got {value!r}") from exc
+
+
+def _check_noise(noise) -> float:
+    """Return ``noise`` as a float, or raise ValueError unless finite and >= 0."""
+    value = _as_float(noise, "noise")
+    if not math.isfinite(value) or value < 0:
+        raise ValueError(f"noise must be finite and >= 0, got {value!r}")
+    return value
+
+
+def _check_length(length) -> float:
+    """Return ``length`` as a float, or raise ValueError unless finite and > 0."""
+    value = _as_float(length, "length")
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"length must be finite and > 0, got {value!r}")
+    return value
+
+
+def _check_contact(contact) -> np.ndarray:
+    """Return ``contact`` as a (3,) float64 array, or raise ValueError."""
+    try:
+        arr = np.asarray(contact, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"contact must be 3 numbers, got {contact!r}") from exc
+    if arr.shape != (3,):
+        raise ValueError(f"contact must have shape (3,), got shape {arr.shape}: {contact!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"contact must be finite, got {arr.tolist()}")
+    return arr
+
+
+def _make_rng(rng) -> tuple[np.random.Generator, int | None]:
+    """Return a generator for ``rng`` and the integer seed that reproduces it, if any."""
+    if rng is None:
+        seed = secrets.randbits(63)
+        return np.random.default_rng(seed), seed
+    if isinstance(rng, (bool, np.bool_)):
+        raise ValueError(f"rng must be a numpy Generator, an int seed or None, got {rng!r}")
+    if isinstance(rng, (int, np.integer)):
+        if rng < 0:
+            raise ValueError(f"rng must be a non-negative int seed, got {int(rng)}")
+        return np.random.default_rng(int(rng)), int(rng)
+    try:
+        return np.random.default_rng(rng), None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"rng must be a numpy Generator, an int seed or None, got {rng!r}"
+        ) from exc
+
+
+def _frozen(arr) -> np.ndarray:
+    """Return a read-only float64 copy of ``arr``."""
+    out = np.array(arr, dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+# ---------------------------------------------------------------------------- the mesh
+def _resolve_mesh(mesh) -> tuple[trimesh.Trimesh, str]:
+    """Return ``(trimesh.Trimesh, name)`` for a mesh, a mesh file or a duck-typed model."""
+    if isinstance(mesh, trimesh.Trimesh):
+        return mesh, ""
+    if isinstance(mesh, (str, os.PathLike)):
+        path = Path(mesh)
+        if not path.is_file():
+            raise ValueError(f"mesh file {str(path)!r} does not exist")
+        loaded = trimesh.load(path, force="mesh")
+        if not isinstance(loaded, trimesh.Trimesh):
+            raise ValueError(f"mesh file {str(path)!r} holds no triangle mesh")
+        return loaded, path.stem
+    if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+        tm = trimesh.Trimesh(
+            vertices=np.asarray(mesh.vertices, dtype=np.float64),
+            faces=np.asarray(mesh.faces, dtype=np.int64),
+            process=False,
+        )
+        label = getattr(mesh, "name", "")
+        return tm, "" if label is None else str(label)
+    raise TypeError(
+        "mesh must be a trimesh.Trimesh, a path to a mesh file, or an object with "
+        f"vertices and faces, got {type(mesh).__name__}"
+    )
+
+
+class _Surface:
+    """Arrays of a mesh used by the simulation, computed once.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The mesh (not modified).
+
+    Raises
+    ------
+    ValueError
+        If the mesh has no faces or no area, or a non-finite vertex.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh):
+        self.mesh = mesh
+        self.vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        self.faces = np.asarray(mesh.faces, dtype=np.int64)
+        if len(self.faces) == 0:
+            raise ValueError("mesh has no faces")
+        if not np.all(np.isfinite(self.vertices)):
+            raise ValueError("mesh has non-finite vertices")
+        tri = self.vertices[self.faces]
+        self.triangles = tri
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        norm = np.linalg.norm(cross, axis=1)
+        self.face_areas = 0.5 * norm
+        self.area = float(self.face_areas.sum())
+        if not self.area > 0:
+            raise ValueError(f"mesh must have a positive surface area, got {self.area!r}")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normals = cross / norm[:, None]
+        normals[norm == 0] = 0.0
+        self.face_normals = normals
+        edges = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2)
+        self.max_edge = float(edges.max())
+        diag = float(np.linalg.norm(np.ptp(self.vertices, axis=0)))
+        self.merge_tol = defaults.SIM_MERGE_FRACTION * diag
+
+
+def _closest_point(surface: _Surface, point: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """Return the closest point of the mesh to ``point``, its face and distance.
+
+    Brute force over all (non-degenerate) faces, vectorised (Ericson, Real-Time Collision
+    Detection, 5.1.5).
+
+    Parameters
+    ----------
+    surface : _Surface
+    point : (3,) float
+
+    Returns
+    -------
+    closest : (3,) float
+    face : int
+    distance : float
+    """
+    a, b, c = surface.triangles[:, 0], surface.triangles[:, 1], surface.triangles[:, 2]
+    p = point[None, :]
+    ab, ac, ap = b - a, c - a, p - a
+    bp, cp = p - b, p - c
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        denom = va + vb + vc
+        v = vb / denom
+        w = vc / denom
+        out = a + ab * v[:, None] + ac * w[:, None]
+        # regions, applied from the lowest priority to the highest
+        bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+        wbc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out[bc] = (b + (c - b) * wbc[:, None])[bc]
+        eac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        wac = d2 / (d2 - d6)
+        out[eac] = (a + ac * wac[:, None])[eac]
+        rc = (d6 >= 0) & (d5 <= d6)
+        out[rc] = c[rc]
+        eab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        vab = d1 / (d1 - d3)
+        out[eab] = (a + ab * vab[:, None])[eab]
+        rb = (d3 >= 0) & (d4 <= d3)
+        out[rb] = b[rb]
+        ra = (d1 <= 0) & (d2 <= 0)
+        out[ra] = a[ra]
+    dist = np.linalg.norm(out - p, axis=1)
+    dist[~np.isfinite(dist) | (surface.face_areas <= 0)] = np.inf
+    face = int(np.argmin(dist))
+    return out[face].copy(), face, float(dist[face])
+
+
+def _random_rigid(rng: np.random.Generator, scale: float) -> np.ndarray:
+    """Return a (4, 4) rigid motion: uniform rotation, translation uniform in [-scale, scale]^3."""
+    q = rng.standard_normal(4)
+    while np.linalg.norm(q) < 1e-12:  # pragma: no cover - probability zero
+        q = rng.standard_normal(4)
+    x, y, z, w = q / np.linalg.norm(q)
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = rng.uniform(-scale, scale, size=3)
+    return T
+
+
+# ---------------------------------------------------------------------------- the curves
+def _cutting_planes(
+    rng: np.random.Generator, normal: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Draw three cutting planes through a point with surface normal ``normal``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    normal : (3,) float
+        Unit surface normal.
+
+    Returns
+    -------
+    list of ((3,) float, (3,) float)
+        ``(plane_normal, trace)`` per plane: the unit plane normal and the unit direction
+        in which the plane meets the tangent plane.
+    """
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    t1 = helper - normal * (helper @ normal)
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(normal, t1)
+    jitter = math.radians(max(0.0, (60.0 - defaults.SIM_MIN_PLANE_ANGLE_DEG) / 2.0))
+    max_tilt = math.radians(defaults.SIM_MAX_TILT_DEG)
+    base = rng.uniform(0.0, math.pi)
+    angles = base + np.arange(3) * (math.pi / 3.0) + rng.uniform(-jitter, jitter, size=3)
+    tilts = rng.uniform(-max_tilt, max_tilt, size=3)
+    planes = []
+    for angle, tilt in zip(angles, tilts, strict=True):
+        trace = math.cos(angle) * t1 + math.sin(angle) * t2
+        upright = np.cross(trace, normal)  # normal of the plane spanned by trace and normal
+        plane_normal = math.cos(tilt) * upright + math.sin(tilt) * normal
+        planes.append((plane_normal / np.linalg.norm(plane_normal), trace))
+    return planes
+
+
+def _cut_curves(
+    surface: _Surface,
+    c: np.ndarray,
+    normal: np.ndarray,
+    rng: np.random.Generator,
+    n_points: int,
+    length: float,
+) -> tuple[list[np.ndarray] | None, str | None]:
+    """Cut three curves through ``c``; return ``(curves, None)`` or ``(None, why)``."""
+    planes = _cutting_planes(rng, normal)
+    half = 0.5 * length
+    radius = half * (1 + 1e-9) + surface.max_edge + surface.merge_tol
+    near = np.einsum("ij,ij->i", surface.vertices - c, surface.vertices - c) <= radius * radius
+    local_faces = np.flatnonzero(near[surface.faces].any(axis=1))
+    curves = []
+    for plane_normal, trace in planes:
+        curve, why = _section_curve(surface, c, plane_normal, half, n_points, local_faces)
+        if curve is None:
+            return None, why
+        mid = n_points // 2
+        if (curve[mid + 1] - curve[mid - 1]) @ trace < 0:
+            curve = curve[::-1].copy()
+        curves.append(curve)
+    return curves, None
+
+
+def _merge_labels(points: np.ndarray, tol: float) -> np.ndarray:
+    """Label points so that points closer than ``tol`` (transitively) share a label."""
+    n = len(points)
+    pairs = cKDTree(points).query_pairs(r=tol, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(n)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return labels
+
+
+def _section_curve(
+    surface: _Surface,
+    c: np.ndarray,
+    plane_normal: np.ndarray,
+    half: float,
+    n_points: int,
+    local_faces: np.ndarray,
+) -> tuple[np.ndarray | None, str | None]:
+    """Sample the section curve through ``c`` of the mesh and a plane through ``c``.
+
+    Parameters
+    ----------
+    surface : _Surface
+    c : (3,) float
+        A point on the mesh.
+    plane_normal : (3,) float
+        Unit normal of the cutting plane (which passes through ``c``).
+    half : float
+        Half the arc length to sample on each side of ``c``.
+    n_points : int
+        Odd number of samples.
+    local_faces : (k,) int
+        Faces within reach (every face holding a point within ``half`` of ``c``).
+
+    Returns
+    -------
+    curve : (n_points, 3) float or None
+        Samples at equal arc-length steps over ``[-half, half]``, the middle one ``c``.
+    why : str or None
+        Why there is no curve (too short), or None.
+    """
+    segments = trimesh.intersections.mesh_plane(
+        surface.mesh, plane_normal, c, local_faces=local_faces
+    )
+    segments = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 3)
+    if len(segments) == 0:
+        return None, "the plane does not cut the mesh near the contact"
+    flat = segments.reshape(-1, 3)
+    labels = _merge_labels(flat, surface.merge_tol)
+    uniq, first = np.unique(labels, return_index=True)
+    relabel = np.zeros(labels.max() + 1, dtype=np.int64)
+    relabel[uniq] = np.arange(len(uniq))
+    nodes = [row for row in flat[first]]
+    edges = relabel[labels].reshape(-1, 2)
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    if len(edges) == 0:
+        return None, "the section through the contact is degenerate"
+    edges = np.unique(np.sort(edges, axis=1), axis=0)
+
+    # the segment holding c, and c as a node of the section graph
+    node_arr = np.asarray(nodes)
+    a, b = node_arr[edges[:, 0]], node_arr[edges[:, 1]]
+    ab = b - a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(np.einsum("ij,ij->i", c - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+    t = np.nan_to_num(t)
+    dist = np.linalg.norm(a + ab * t[:, None] - c, axis=1)
+    k = int(np.argmin(dist))
+    ia, ib = int(edges[k, 0]), int(edges[k, 1])
+    edge_list = [tuple(e) for e in edges.tolist()]
+    if np.linalg.norm(node_arr[ia] - c) <= surface.merge_tol:
+        start = ia
+    elif np.linalg.norm(node_arr[ib] - c) <= surface.merge_tol:
+        start = ib
+    else:
+        start = len(nodes)
+        nodes.append(c)
+        edge_list[k] = (start, ia)
+        edge_list.append((start, ib))
+    nodes[start] = c
+    adjacency: dict[int, list[int]] = {}
+    for u, v in edge_list:
+        adjacency.setdefault(u, []).append(v)
+        adjacency.setdefault(v, []).append(u)
+
+    first_steps = _opposite_pair(nodes, start, adjacency[start])
+    forward, closed = _walk(nodes, adjacency, start, first_steps[0], set())
+    if closed:
+        loop = np.asarray([nodes[i] for i in [*forward, start]])
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(loop, axis=0), axis=1))])
+        perimeter = float(s[-1])
+        if perimeter < 2 * half * (1 - 1e-9):
+            return None, (
+                f"the section through the contact is a closed loop of length {perimeter:.6g} "
+                f"< {2 * half:.6g}"
+            )
+        q = np.mod(np.linspace(-half, half, n_points), perimeter)
+        curve = np.column_stack([np.interp(q, s, loop[:, j]) for j in range(3)])
+    else:
+        if len(first_steps) > 1:
+            backward, _ = _walk(nodes, adjacency, start, first_steps[1], set(forward[1:]))
+        else:
+            backward = [start]
+        chain = np.asarray([nodes[i] for i in backward[::-1] + forward[1:]])
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(chain, axis=0), axis=1))])
+        s -= s[len(backward) - 1]
+        if s[0] > -half * (1 - 1e-9) or s[-1] < half * (1 - 1e-9):
+            return None, (
+                f"the section curve through the contact ends {-s[0]:.6g} and {s[-1]:.6g} "
+                f"from it along the curve, needs {half:.6g} on each side"
+            )
+        keep = np.concatenate([[True], np.diff(s) > 0])
+        s, chain = s[keep], chain[keep]
+        q = np.linspace(-half, half, n_points)
+        curve = np.column_stack([np.interp(q, s, chain[:, j]) for j in range(3)])
+    curve[n_points // 2] = c
+    return curve, None
+
+
+def _opposite_pair(nodes: list[np.ndarray], start: int, neighbours: list[int]) -> list[int]:
+    """Return the one or two neighbours of ``start`` to walk to, the most opposite pair."""
+    if len(neighbours) <= 2:
+        return list(neighbours)
+    dirs = np.asarray([nodes[j] - nodes[start] for j in neighbours])
+    dirs /= np.maximum(np.linalg.norm(dirs, axis=1, keepdims=True), 1e-300)
+    cos = dirs @ dirs.T
+    np.fill_diagonal(cos, np.inf)
+    i, j = np.unravel_index(int(np.argmin(cos)), cos.shape)
+    return [neighbours[i], neighbours[j]]
+
+
+def _walk(
+    nodes: list[np.ndarray],
+    adjacency: dict[int, list[int]],
+    start: int,
+    first: int,
+    forbidden: set[int],
+) -> tuple[list[int], bool]:
+    """Follow the section graph from ``start`` through ``first`` to an end.
+
+    At a branching node the straightest continuation is taken. Returns the visited nodes
+    (starting with ``start``) and whether the walk came back to ``start`` (a closed loop).
+    The walk stops before revisiting a node or entering ``forbidden``.
+    """
+    order = [start, first]
+    seen = {start, first}
+    prev, cur = start, first
+    while True:
+        options = [n for n in adjacency[cur] if n != prev]
+        if not options:
+            return order, False
+        if len(options) > 1:
+            incoming = nodes[cur] - nodes[prev]
+            scores = [
+                float(incoming @ (nodes[n] - nodes[cur]))
+                / max(float(np.linalg.norm(nodes[n] - nodes[cur])), 1e-300)
+                for n in options
+            ]
+            nxt = options[int(np.argmax(scores))]
+        else:
+            nxt = options[0]
+        if nxt == start:
+            return order, True
+        if nxt in seen or nxt in forbidden:
+            return order, False
+        order.append(nxt)
+        seen.add(nxt)
+        prev, cur = cur, nxt

@@ -1,0 +1,396 @@
+"""Tests of meshrec.simulate: simulated touches cut from meshes."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshrec import defaults
+from meshrec.simulate import SimulatedTouch, _closest_point, _Surface, simulate_touch
+from meshrec.touch import TouchData
+
+RADIUS = 2.0
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return trimesh.creation.icosphere(subdivisions=5, radius=RADIUS)
+
+
+@pytest.fixture(scope="module")
+def coarse_sphere():
+    return trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+
+
+def _sphere_depth(mesh: trimesh.Trimesh) -> float:
+    """How far inside the sphere the mesh reaches (deepest at face centroids)."""
+    return RADIUS - float(np.linalg.norm(mesh.triangles_center, axis=1).min())
+
+
+def _grid_patch(height, n: int = 41, half: float = 1.0) -> trimesh.Trimesh:
+    """An open patch z = height(x, y) over [-half, half]^2, faces wound with +z normals."""
+    xs = np.linspace(-half, half, n)
+    X, Y = np.meshgrid(xs, xs)
+    vertices = np.column_stack([X.ravel(), Y.ravel(), height(X, Y).ravel()])
+    idx = np.arange(n * n).reshape(n, n)
+    v00, v01 = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    v10, v11 = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    faces = np.vstack([np.column_stack([v00, v01, v11]), np.column_stack([v00, v11, v10])])
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+def _paraboloid(x, y):
+    return x**2 + y**2
+
+
+@pytest.fixture(scope="module")
+def paraboloid():
+    return _grid_patch(_paraboloid)
+
+
+def _steps(curve: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(np.diff(curve, axis=0), axis=1)
+
+
+def _tangent_at_middle(curve: np.ndarray) -> np.ndarray:
+    mid = len(curve) // 2
+    d = curve[mid + 1] - curve[mid - 1]
+    return d / np.linalg.norm(d)
+
+
+# ------------------------------------------------------------------ geometry on a sphere
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_sphere_curves_lie_on_the_sphere_equally_spaced(sphere, seed):
+    sim = simulate_touch(sphere, rng=seed, noise=0.0, transform=False)
+    depth = _sphere_depth(sphere)
+    assert sim.length == pytest.approx(defaults.SIM_LENGTH_FRACTION * math.sqrt(sphere.area))
+    assert len(sim.clean_curves) == 3
+    step = sim.length / (defaults.SIM_POINTS - 1)
+    for curve in sim.clean_curves:
+        assert curve.shape == (defaults.SIM_POINTS, 3)
+        r = np.linalg.norm(curve, axis=1)
+        assert np.all(r <= RADIUS + 1e-9)
+        assert np.all(r >= RADIUS - depth - 1e-9)
+        steps = _steps(curve)
+        # equal arc length along the section polyline: chords are at most the step and
+        # shorter only where a step straddles a (slight) polyline corner
+        assert np.all(steps <= step * (1 + 1e-9))
+        assert np.all(steps >= step * (1 - 1e-3))
+        assert steps.sum() == pytest.approx(sim.length, rel=1e-3)
+    # with no noise and no motion the touch is the clean curves
+    for a, b in zip(sim.touch.curves, sim.clean_curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert sim.touch.contact is None
+    assert sim.touch.normal is None
+
+
+@pytest.mark.parametrize("seed", [0, 5, 11])
+def test_sphere_curves_meet_at_the_contact_not_parallel(sphere, seed):
+    sim = simulate_touch(sphere, rng=seed, noise=0.0, transform=False)
+    # the contact is on the mesh and the normal is the outward face normal there
+    assert _closest_point(_Surface(sphere), sim.contact)[2] < 1e-12
+    assert np.linalg.norm(sim.normal) == pytest.approx(1.0)
+    assert sim.normal @ (sim.contact / np.linalg.norm(sim.contact)) > 0.99
+    mid = defaults.SIM_POINTS // 2
+    for curve in sim.clean_curves:
+        np.testing.assert_array_equal(curve[mid], sim.contact)
+    tangents = [_tangent_at_middle(c) for c in sim.clean_curves]
+    for t in tangents:
+        assert abs(t @ sim.normal) < math.sin(math.radians(2.0))
+    for a, b in itertools.combinations(tangents, 2):
+        angle = math.degrees(math.acos(min(1.0, abs(float(a @ b)))))
+        assert angle >= defaults.SIM_MIN_PLANE_ANGLE_DEG - 2.0
+
+
+def test_curves_are_planar_and_tilted_at_most_the_maximum(sphere):
+    max_sin = math.sin(math.radians(defaults.SIM_MAX_TILT_DEG))
+    for seed in range(6):
+        sim = simulate_touch(sphere, rng=seed, noise=0.0, transform=False)
+        for curve in sim.clean_curves:
+            centred = curve - sim.contact
+            _, sv, vt = np.linalg.svd(centred)
+            assert sv[2] < 1e-9 * sv[0]
+            plane_normal = vt[2]
+            assert abs(plane_normal @ sim.normal) <= max_sin + 1e-3
+
+
+def test_closed_loop_wraps_around_the_contact(coarse_sphere):
+    # every cut of a unit sphere is a circle of perimeter >= 2 pi cos(max tilt) > 5
+    sim = simulate_touch(coarse_sphere, rng=3, noise=0.0, transform=False, length=5.0)
+    step = 5.0 / (defaults.SIM_POINTS - 1)
+    mid = defaults.SIM_POINTS // 2
+    for curve in sim.clean_curves:
+        np.testing.assert_array_equal(curve[mid], sim.contact)
+        arc = _steps(curve)
+        assert np.all(arc <= step * (1 + 1e-9))
+        assert arc.sum() == pytest.approx(5.0, rel=0.02)
+
+
+def test_closed_loop_shorter_than_length(coarse_sphere):
+    contact = coarse_sphere.vertices[0]
+    with pytest.raises(ValueError, match="closed loop"):
+        simulate_touch(coarse_sphere, contact=contact, rng=0, length=7.0)
+    with pytest.raises(ValueError, match="length=7"):
+        simulate_touch(coarse_sphere, rng=0, length=7.0)
+
+
+def test_n_points_is_honoured(sphere):
+    sim = simulate_touch(sphere, rng=4, n_points=7, noise=0.0, transform=False)
+    for curve in sim.clean_curves:
+        assert curve.shape == (7, 3)
+        np.testing.assert_array_equal(curve[3], sim.contact)
+    assert sim.truth_dict()["points"] == 7
+
+
+# ------------------------------------------------------------------ noise and motion
+def test_noise_is_uniform_within_bounds(sphere):
+    noise = 0.01
+    sim = simulate_touch(sphere, rng=7, noise=noise, transform=False)
+    deltas = [t - c for t, c in zip(sim.touch.curves, sim.clean_curves, strict=True)]
+    stacked = np.vstack(deltas)
+    assert np.all(np.abs(stacked) <= noise)
+    assert np.abs(stacked).max() > 0.9 * noise
+    assert abs(stacked.mean()) < 0.1 * noise
+    # each curve has its own noise: the three noisy copies of the contact differ
+    mid = defaults.SIM_POINTS // 2
+    copies = np.array([c[mid] for c in sim.touch.curves])
+    assert np.ptp(copies, axis=0).max() > 0
+
+
+def test_transform_maps_back_to_the_clean_curves(sphere):
+    noise = 1e-3
+    sim = simulate_touch(sphere, rng=8, noise=noise)
+    T, T_inv = sim.T_touch_model, sim.T_model_touch
+    R = T[:3, :3]
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    np.testing.assert_allclose(T_inv @ T, np.eye(4), atol=1e-12)
+    assert np.all(np.abs(T[:3, 3]) <= math.sqrt(sphere.area))
+    assert not np.allclose(T, np.eye(4))
+    back = sim.touch.transformed(T_inv)
+    for b, c in zip(back.curves, sim.clean_curves, strict=True):
+        assert np.all(np.abs(b - c) <= noise + 1e-9)
+    np.testing.assert_allclose(sim.contact_touch, R @ sim.contact + T[:3, 3])
+    np.testing.assert_allclose(T_inv[:3, :3] @ sim.contact_touch + T_inv[:3, 3], sim.contact)
+
+
+def test_identity_without_transform(sphere):
+    sim = simulate_touch(sphere, rng=9, transform=False)
+    np.testing.assert_array_equal(sim.T_touch_model, np.eye(4))
+    np.testing.assert_array_equal(sim.T_model_touch, np.eye(4))
+
+
+# ------------------------------------------------------------------ reproducibility
+def test_same_seed_same_touch_different_seed_different(sphere):
+    a = simulate_touch(sphere, rng=42)
+    b = simulate_touch(sphere, rng=42)
+    c = simulate_touch(sphere, rng=43)
+    assert a.seed == 42
+    for x, y in zip(a.touch.curves, b.touch.curves, strict=True):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(a.T_touch_model, b.T_touch_model)
+    np.testing.assert_array_equal(a.contact, b.contact)
+    assert not np.allclose(a.contact, c.contact)
+    assert not np.allclose(a.touch.points, c.touch.points)
+    # a generator gives the same stream as its seed
+    d = simulate_touch(sphere, rng=np.random.default_rng(42))
+    assert d.seed is None
+    np.testing.assert_array_equal(a.touch.points, d.touch.points)
+
+
+def test_no_rng_records_a_seed_that_reproduces(sphere):
+    a = simulate_touch(sphere)
+    assert isinstance(a.seed, int)
+    b = simulate_touch(sphere, rng=a.seed)
+    np.testing.assert_array_equal(a.touch.points, b.touch.points)
+
+
+def test_noise_level_does_not_change_contact_or_pose(sphere):
+    a = simulate_touch(sphere, rng=5, noise=0.0)
+    b = simulate_touch(sphere, rng=5, noise=0.01)
+    np.testing.assert_array_equal(a.contact, b.contact)
+    np.testing.assert_array_equal(a.T_touch_model, b.T_touch_model)
+
+
+# ------------------------------------------------------------------ a given contact
+def test_given_contact_is_honoured(sphere):
+    direction = np.array([0.3, -0.5, 0.8])
+    given = RADIUS * direction / np.linalg.norm(direction)  # on the sphere, near the mesh
+    sim = simulate_touch(sphere, contact=given, rng=1, noise=0.0, transform=False)
+    assert np.linalg.norm(sim.contact - given) <= _sphere_depth(sphere) + 1e-9
+    assert _closest_point(_Surface(sphere), sim.contact)[2] < 1e-12
+    mid = defaults.SIM_POINTS // 2
+    for curve in sim.clean_curves:
+        np.testing.assert_array_equal(curve[mid], sim.contact)
+    # a contact exactly at a mesh vertex works too
+    vertex = sphere.vertices[17]
+    sim = simulate_touch(sphere, contact=vertex, rng=2, noise=0.0, transform=False)
+    np.testing.assert_allclose(sim.contact, vertex, atol=1e-12)
+    for curve in sim.clean_curves:
+        steps = _steps(curve)
+        assert np.all(steps >= sim.length / (defaults.SIM_POINTS - 1) * (1 - 1e-3))
+
+
+def test_given_contact_far_from_the_mesh(sphere):
+    with pytest.raises(ValueError, match=r"contact .* is 0\.5 from the mesh"):
+        simulate_touch(sphere, contact=[0.0, 0.0, RADIUS + 0.5], rng=0)
+
+
+# ------------------------------------------------------------------ open patches
+def test_open_patch_contact_near_the_boundary(paraboloid):
+    x = 0.95
+    with pytest.raises(ValueError, match="too short"):
+        simulate_touch(paraboloid, contact=[x, 0.0, _paraboloid(x, 0.0)], rng=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_open_patch_random_contacts_succeed(paraboloid, seed):
+    sim = simulate_touch(paraboloid, rng=seed, noise=0.0, transform=False)
+    step = sim.length / (defaults.SIM_POINTS - 1)
+    for curve in sim.clean_curves:
+        assert np.all(np.abs(curve[:, :2]) <= 1.0 + 1e-12)
+        # on the mesh: above the paraboloid by at most the chord error of a grid cell
+        gap = curve[:, 2] - _paraboloid(curve[:, 0], curve[:, 1])
+        assert np.all(gap >= -1e-12)
+        assert np.all(gap <= 2 * (2.0 / 40) ** 2)
+        steps = _steps(curve)
+        assert np.all(steps <= step * (1 + 1e-9))
+        assert np.all(steps >= step * 0.98)
+    assert sim.normal[2] > 0  # the face winding points up
+
+
+def test_open_patch_near_centre_given_contact(paraboloid):
+    sim = simulate_touch(paraboloid, contact=[0.1, -0.2, 0.05], rng=3, transform=False)
+    assert sim.contact[:2] == pytest.approx([0.1, -0.2], abs=1e-12)
+
+
+def test_flat_patch_gives_straight_curves():
+    flat = _grid_patch(lambda x, y: np.zeros_like(x), n=21)
+    sim = simulate_touch(flat, rng=6, noise=0.0, transform=False)
+    np.testing.assert_allclose(sim.normal, [0.0, 0.0, 1.0])
+    for curve in sim.clean_curves:
+        np.testing.assert_allclose(curve[:, 2], 0.0, atol=1e-12)
+        _, sv, _ = np.linalg.svd(curve - curve.mean(axis=0))
+        assert sv[1] < 1e-9 * sv[0]
+        np.testing.assert_allclose(_steps(curve), sim.length / (defaults.SIM_POINTS - 1))
+
+
+# ------------------------------------------------------------------ mesh inputs
+def test_mesh_from_file_and_duck_typed_object(tmp_path, coarse_sphere):
+    path = tmp_path / "ball.ply"
+    coarse_sphere.export(path)
+    from_file = simulate_touch(path, rng=1)
+    assert from_file.model == "ball"
+    from_str = simulate_touch(str(path), rng=1, name="renamed")
+    assert from_str.model == "renamed"
+
+    class Model:
+        name = "duck"
+        vertices = coarse_sphere.vertices
+        faces = coarse_sphere.faces
+
+    duck = simulate_touch(Model(), rng=1)
+    assert duck.model == "duck"
+    bare = simulate_touch(coarse_sphere, rng=1)
+    assert bare.model == ""
+    np.testing.assert_allclose(duck.touch.points, bare.touch.points)
+    np.testing.assert_allclose(from_file.contact, bare.contact, atol=1e-9)
+
+
+# ------------------------------------------------------------------ files
+def test_write_csv_and_truth(tmp_path, sphere):
+    sim = simulate_touch(sphere, rng=10, name="ball")
+    touch_path = tmp_path / "out" / "touch.csv"
+    truth_path = tmp_path / "truth.json"
+    sim.write(touch_path, truth_path)
+    back = TouchData.from_csv(touch_path)
+    assert len(back.curves) == 3
+    for a, b in zip(back.curves, sim.touch.curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert back.contact is None
+    truth = json.loads(truth_path.read_text())
+    assert set(truth) == {
+        "model", "contact", "normal", "T_touch_model", "T_model_touch", "contact_touch",
+        "noise", "length", "points", "seed",
+    }  # fmt: skip
+    assert truth["model"] == "ball"
+    assert truth["seed"] == 10
+    assert truth["points"] == defaults.SIM_POINTS
+    assert truth["noise"] == defaults.SIM_NOISE
+    assert truth["length"] == sim.length
+    np.testing.assert_array_equal(truth["contact"], sim.contact)
+    np.testing.assert_array_equal(truth["normal"], sim.normal)
+    np.testing.assert_array_equal(truth["T_touch_model"], sim.T_touch_model)
+    np.testing.assert_array_equal(truth["T_model_touch"], sim.T_model_touch)
+    np.testing.assert_array_equal(truth["contact_touch"], sim.contact_touch)
+    assert truth == sim.truth_dict()
+
+
+def test_write_json_with_default_truth_path(tmp_path, sphere):
+    sim = simulate_touch(sphere, rng=11)
+    sim.write(tmp_path / "t.json")
+    back = TouchData.from_json(tmp_path / "t.json")
+    np.testing.assert_array_equal(back.points, sim.touch.points)
+    truth = json.loads((tmp_path / "t.truth.json").read_text())
+    assert truth["model"] == ""
+    assert truth["seed"] == 11
+
+
+def test_write_rejects_unknown_suffix_and_same_path(tmp_path, coarse_sphere):
+    sim = simulate_touch(coarse_sphere, rng=0)
+    with pytest.raises(ValueError, match=r"\.csv or \.json"):
+        sim.write(tmp_path / "t.txt")
+    with pytest.raises(ValueError, match="truth_path"):
+        sim.write(tmp_path / "t.json", tmp_path / "t.json")
+
+
+def test_result_is_immutable(coarse_sphere):
+    sim = simulate_touch(coarse_sphere, rng=0)
+    assert isinstance(sim, SimulatedTouch)
+    with pytest.raises(ValueError, match="read-only"):
+        sim.contact[0] = 1.0
+    with pytest.raises(AttributeError):
+        sim.noise = 0.5  # type: ignore[misc]
+
+
+# ------------------------------------------------------------------ argument checks
+@pytest.mark.parametrize(
+    ("kwargs", "pattern"),
+    [
+        ({"n_points": 4}, "n_points .* got 4"),
+        ({"n_points": 3}, "n_points .* got 3"),
+        ({"n_points": 61.0}, r"n_points .* got 61\.0"),
+        ({"n_points": True}, "n_points .* got True"),
+        ({"noise": -0.1}, r"noise .* got -0\.1"),
+        ({"noise": float("nan")}, "noise .* got nan"),
+        ({"noise": float("inf")}, "noise .* got inf"),
+        ({"noise": "a"}, "noise must be a number, got 'a'"),
+        ({"length": 0.0}, r"length .* got 0\.0"),
+        ({"length": -1}, r"length .* got -1\.0"),
+        ({"length": float("inf")}, "length .* got inf"),
+        ({"contact": [0.0, 1.0]}, r"contact must have shape \(3,\), got shape \(2,\)"),
+        ({"contact": [0.0, float("nan"), 1.0]}, "contact must be finite, got .*nan"),
+        ({"contact": "abc"}, "contact must be 3 numbers"),
+        ({"rng": -1}, "rng must be a non-negative int seed, got -1"),
+        ({"rng": "seed"}, "rng must be .* got 'seed'"),
+        ({"transform": "yes"}, "transform must be True or False, got 'yes'"),
+    ],
+)
+def test_invalid_arguments(coarse_sphere, kwargs, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        simulate_touch(coarse_sphere, **kwargs)
+
+
+def test_invalid_meshes(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        simulate_touch(tmp_path / "missing.stl")
+    with pytest.raises(TypeError, match="got int"):
+        simulate_touch(42)
+    flat = trimesh.Trimesh(vertices=np.zeros((3, 3)), faces=[[0, 1, 2]], process=False)
+    with pytest.raises(ValueError, match="positive surface area"):
+        simulate_touch(flat)
