@@ -31,7 +31,7 @@ SIM_CONTACT_PLANE_TRIES = 20
 SIM_MERGE_FRACTION = 1e-9
 
 # --- local geometry from the curves (the paper's reference [11]) ---------------------------
-#: Degree of the polynomial fitted to each curve, as a graph over its chord direction.
+#: Degree of the polynomial fitted to each curve (in a smoothed arc-length parameter).
 CURVE_FIT_DEGREE = 4
 #: Smallest points per curve accepted.
 MIN_POINTS_PER_CURVE = 5
@@ -39,6 +39,20 @@ MIN_POINTS_PER_CURVE = 5
 MIN_CURVES = 3
 #: Two curve tangents closer than this angle (degrees, modulo 180) count as parallel.
 MIN_TANGENT_ANGLE_DEG = 10.0
+#: Largest condition number of the Euler least-squares system (tangents 60 degrees apart
+#: give 1.41; three tangents within 20 degrees, 68): above it the curves count as parallel.
+MAX_EULER_CONDITION = 50.0
+#: Samples on each side of the moving average whose chord lengths parametrise a curve fit.
+CURVE_PARAM_SMOOTHING = 3
+#: A curve fit stops where the curve turns more than this from its direction at p, degrees.
+CURVE_FIT_MAX_TURN_DEG = 75.0
+#: A curve whose consecutive samples are (median) more than this many times farther apart
+#: than nearest neighbours is not ordered along the curve, and is refused (ordered curves
+#: stay under 3.5 while the noise is under 10 times the sample spacing; shuffled ones of 61
+#: samples give 6.6 or more).
+MAX_STEP_TO_NEIGHBOUR_RATIO = 6.0
+#: Refinements of the common point (fit the curves around p, meet their tangent lines).
+COMMON_POINT_ITERATIONS = 5
 
 # --- candidate lookup (Section 2.1) --------------------------------------------------------
 #: Relative tolerance on each principal curvature: |k_mesh - k_data| <= rel * max|k| + abs.

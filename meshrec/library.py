@@ -1,0 +1,248 @@
+"""A library of indexed models: every mesh file of a folder, and the bundled libraries."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from .index import IndexParams, ModelIndex
+from .mesh import is_mesh_file
+
+#: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed.
+ProgressCallback = Callable[[int, int, str], None]
+
+
+class LibraryWarning(UserWarning):
+    """A file of a model library was skipped."""
+
+
+@dataclass(frozen=True, eq=False)
+class ModelLibrary:
+    """Indexed models, sorted by name, with the files that were skipped and why.
+
+    Attributes
+    ----------
+    folder : Path or None
+        The folder the models came from (``None`` for :meth:`from_files`).
+    models : tuple of ModelIndex
+        Sorted by name; names are unique.
+    skipped : tuple of (Path, str)
+        Mesh files that could not be used, with the reason.
+    """
+
+    folder: Path | None
+    models: tuple[ModelIndex, ...]
+    skipped: tuple[tuple[Path, str], ...] = ()
+
+    @classmethod
+    def from_folder(
+        cls,
+        folder: str | os.PathLike,
+        params: IndexParams | None = None,
+        cache_dir: str | os.PathLike | None = None,
+        force: bool = False,
+        progress: ProgressCallback | None = None,
+    ) -> ModelLibrary:
+        """Index every mesh file directly inside ``folder`` (not recursive).
+
+        Files are taken in sorted order; those whose ending is not in
+        :data:`meshrec.mesh.MESH_SUFFIXES` are ignored. A mesh file that cannot be loaded,
+        or whose name (stem) repeats an earlier one, is skipped with a warning.
+
+        Parameters
+        ----------
+        folder : str or path-like
+            The model folder.
+        params : IndexParams or None
+            Index parameters for every model (``None``: the defaults).
+        cache_dir : str or path-like or None
+            The index cache (``None``: :func:`meshrec.cache.default_cache_dir`).
+        force : bool
+            Rebuild every index even if cached.
+        progress : callable or None
+            ``progress(i, n, name)`` called before model ``i`` (0-based) of ``n``.
+
+        Returns
+        -------
+        ModelLibrary
+
+        Raises
+        ------
+        ValueError
+            If ``folder`` does not exist or is not a directory, holds no mesh file, or
+            none of its mesh files can be loaded; or ``params`` is not an IndexParams.
+
+        Warns
+        -----
+        LibraryWarning
+            For every skipped file.
+        """
+        root = Path(folder)
+        if not root.exists():
+            raise ValueError(f"model folder {str(root)!r} does not exist")
+        if not root.is_dir():
+            raise ValueError(f"model folder {str(root)!r} is not a directory")
+        files = sorted(p for p in root.iterdir() if p.is_file() and is_mesh_file(p))
+        if not files:
+            raise ValueError(f"model folder {str(root)!r} holds no mesh file (.stl, .obj, ...)")
+        return cls._build(root, files, params, cache_dir, force, progress, what=f"{root}")
+
+    @classmethod
+    def from_files(
+        cls,
+        paths: Iterable[str | os.PathLike],
+        params: IndexParams | None = None,
+        cache_dir: str | os.PathLike | None = None,
+        force: bool = False,
+        progress: ProgressCallback | None = None,
+    ) -> ModelLibrary:
+        """Index the given mesh files (in the given order; the models end up sorted).
+
+        A file that cannot be loaded, or whose name repeats an earlier one, is skipped
+        with a warning.
+
+        Parameters
+        ----------
+        paths : iterable of str or path-like
+            Mesh files.
+        params, cache_dir, force, progress
+            As for :meth:`from_folder`.
+
+        Returns
+        -------
+        ModelLibrary
+            With ``folder = None``.
+
+        Raises
+        ------
+        ValueError
+            If ``paths`` is empty or a string, none of the files can be loaded, or
+            ``params`` is not an IndexParams.
+
+        Warns
+        -----
+        LibraryWarning
+            For every skipped file.
+        """
+        if isinstance(paths, (str, bytes, os.PathLike)):
+            raise ValueError(f"paths must be an iterable of paths, got a single path {paths!r}")
+        files = [Path(p) for p in paths]
+        if not files:
+            raise ValueError("paths must name at least one mesh file, got none")
+        return cls._build(None, files, params, cache_dir, force, progress, what="the given files")
+
+    @classmethod
+    def _build(cls, folder, files, params, cache_dir, force, progress, what) -> ModelLibrary:
+        if params is not None and not isinstance(params, IndexParams):
+            raise ValueError(f"params must be an IndexParams or None, got {params!r}")
+        models: dict[str, ModelIndex] = {}
+        skipped: list[tuple[Path, str]] = []
+        n = len(files)
+        for i, path in enumerate(files):
+            if progress is not None:
+                progress(i, n, path.stem)
+            if path.stem in models:
+                reason = (
+                    f"duplicate model name {path.stem!r} "
+                    f"(already loaded from {models[path.stem].path.name!r})"
+                )
+            else:
+                try:
+                    models[path.stem] = ModelIndex.from_file(
+                        path, params=params, cache_dir=cache_dir, force=force
+                    )
+                    continue
+                except ValueError as exc:
+                    reason = str(exc)
+            skipped.append((path, reason))
+            warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=3)
+        if not models:
+            raise ValueError(
+                f"no loadable mesh in {what}: " + "; ".join(f"{p.name}: {r}" for p, r in skipped)
+            )
+        ordered = tuple(models[name] for name in sorted(models))
+        return cls(folder=folder, models=ordered, skipped=tuple(skipped))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The models' names, sorted."""
+        return tuple(m.name for m in self.models)
+
+    def __getitem__(self, name: str) -> ModelIndex:
+        """The model called ``name``.
+
+        Raises
+        ------
+        KeyError
+            If there is no such model.
+        """
+        for m in self.models:
+            if m.name == name:
+                return m
+        raise KeyError(f"no model named {name!r}; the library holds {list(self.names)}")
+
+    def __contains__(self, name: object) -> bool:
+        return any(m.name == name for m in self.models)
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def __iter__(self) -> Iterator[ModelIndex]:
+        return iter(self.models)
+
+    def __repr__(self) -> str:
+        where = str(self.folder) if self.folder is not None else "files"
+        return f"ModelLibrary({where!r}, models={list(self.names)}, skipped={len(self.skipped)})"
+
+
+def _bundled_roots() -> tuple[Path, ...]:
+    """Where bundled libraries may live: the installed copy first, then the repository's."""
+    here = Path(__file__).resolve().parent
+    return (here / "_bundled_models", here.parent / "models")
+
+
+def bundled_models_dir(name: str = "surfaces") -> Path:
+    """The folder of a bundled model library.
+
+    Looks in the installed package (``meshrec/_bundled_models/<name>``) first, then in the
+    source repository (``models/<name>``).
+
+    Parameters
+    ----------
+    name : str
+        The library, e.g. ``"surfaces"`` (the paper's surfaces) or ``"objects"``.
+
+    Returns
+    -------
+    Path
+        An existing directory.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is not a plain folder name or no bundled library has that name (the
+        message lists the available ones).
+    """
+    if not isinstance(name, str) or not name or name in (".", "..") or Path(name).name != name:
+        raise ValueError(f"name must be a plain library name such as 'surfaces', got {name!r}")
+    roots = _bundled_roots()
+    for root in roots:
+        candidate = root / name
+        if candidate.is_dir():
+            return candidate
+    available = sorted(
+        {
+            p.name
+            for root in roots
+            if root.is_dir()
+            for p in root.iterdir()
+            if p.is_dir() and not p.name.startswith((".", "_"))
+        }
+    )
+    raise ValueError(
+        f"no bundled model library named {name!r}; available: "
+        + (", ".join(available) if available else "none (no bundled models found)")
+    )

@@ -1,0 +1,506 @@
+"""Tests for meshrec.index: curvature table, lookup, distance queries, caching."""
+
+import dataclasses
+import itertools
+import pickle
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshrec import defaults
+from meshrec import index as index_mod
+from meshrec.cache import CacheWarning
+from meshrec.index import IndexParams, ModelIndex
+
+
+# ----------------------------------------------------------------------------- meshes
+def _cylinder(r=1.0, h=4.0, sections=128, rings=80, cap_rings=20) -> trimesh.Trimesh:
+    """A closed cylinder about z: a fine side grid and caps of concentric rings."""
+    th = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
+    ring = np.column_stack([np.cos(th), np.sin(th), np.zeros(sections)])
+    z = np.linspace(-h / 2, h / 2, rings + 1)
+    verts = [ring * [r, r, 0] + [0, 0, zz] for zz in z]
+    faces = []
+    j = np.arange(sections)
+    jn = (j + 1) % sections
+    for i in range(rings):
+        a, b = i * sections + j, i * sections + jn
+        c, d = (i + 1) * sections + jn, (i + 1) * sections + j
+        faces += [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+    n = (rings + 1) * sections
+    for top in (False, True):
+        zz = h / 2 if top else -h / 2
+        rim = j + (rings * sections if top else 0)
+        rims = [rim]
+        for k in range(1, cap_rings):
+            verts.append(ring * (r * (1 - k / cap_rings)) + [0, 0, zz])
+            rims.append(n + j)
+            n += sections
+        verts.append(np.array([[0.0, 0.0, zz]]))
+        centre = n
+        n += 1
+        tris = []
+        for o, i_ in itertools.pairwise(rims):
+            tris += [np.column_stack([o, o[jn], i_[jn]]), np.column_stack([o, i_[jn], i_])]
+        tris.append(np.column_stack([rims[-1], rims[-1][jn], np.full(sections, centre)]))
+        tris = np.vstack(tris)
+        faces.append(tris if top else tris[:, ::-1])
+    return trimesh.Trimesh(np.vstack(verts), np.vstack(faces), process=True)
+
+
+def _ellipsoid_KH(p, a, b, c):
+    """Closed-form Gaussian and mean curvature (outward normals) at points on the ellipsoid."""
+    x, y, z = p.T
+    w = x**2 / a**4 + y**2 / b**4 + z**2 / c**4
+    K = 1.0 / ((a * b * c) ** 2 * w**2)
+    H = (a * a + b * b + c * c - (x * x + y * y + z * z)) / (2.0 * (a * b * c) ** 2 * w**1.5)
+    return K, H
+
+
+def _index(tmp_path, mesh, name="m", suffix=".stl", **kw):
+    path = tmp_path / f"{name}{suffix}"
+    mesh.export(path)
+    kw.setdefault("cache_dir", tmp_path / "cache")
+    return ModelIndex.from_file(path, **kw)
+
+
+@pytest.fixture(scope="module")
+def sphere_index(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sphere")
+    return _index(tmp, trimesh.creation.icosphere(subdivisions=4, radius=2.0), "sphere")
+
+
+@pytest.fixture(scope="module")
+def ellipsoid_index(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("ellipsoid")
+    mesh = trimesh.creation.icosphere(subdivisions=5)
+    mesh.apply_scale([1.0, 0.8, 0.5])
+    return _index(tmp, mesh, "ellipsoid")
+
+
+# ----------------------------------------------------------------------------- params
+def test_params_defaults_and_radius():
+    p = IndexParams()
+    assert p.curvature_fraction == defaults.CURVATURE_SCALE_FRACTION
+    assert (p.min_radius, p.max_radius) == (
+        defaults.CURVATURE_MIN_RADIUS,
+        defaults.CURVATURE_MAX_RADIUS,
+    )
+    assert p.radius_edges(scale=10.0, avg_edge=0.05) == 4
+    assert p.radius_edges(scale=10.0, avg_edge=1.0) == p.min_radius
+    assert p.radius_edges(scale=10.0, avg_edge=1e-4) == p.max_radius
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"curvature_fraction": 0.0}, "curvature_fraction must be a finite number > 0, got 0.0"),
+        ({"curvature_fraction": float("nan")}, "curvature_fraction"),
+        ({"curvature_fraction": "big"}, "curvature_fraction"),
+        ({"min_radius": 0}, "min_radius must be an integer >= 1, got 0"),
+        ({"max_radius": 2.5}, "max_radius must be an integer >= 1, got 2.5"),
+        ({"min_radius": True}, "min_radius"),
+        ({"min_radius": 5, "max_radius": 3}, "max_radius must be >= min_radius"),
+    ],
+)
+def test_params_errors(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        IndexParams(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("scale", "edge", "name"), [(0.0, 1.0, "scale"), (1.0, np.inf, "avg_edge")]
+)
+def test_radius_edges_errors(scale, edge, name):
+    with pytest.raises(ValueError, match=f"{name} must be finite and > 0"):
+        IndexParams().radius_edges(scale, edge)
+
+
+# ----------------------------------------------------------------------------- curvature
+def test_sphere_curvature_and_sign(sphere_index):
+    idx = sphere_index
+    r = 2.0
+    assert idx.valid.all()
+    assert idx.closed
+    assert np.all(idx.k1 >= idx.k2)
+    # Measured: relative errors <= 1.0e-2 (K) and 4.8e-3 (H) on this 5120-face sphere.
+    assert np.allclose(idx.K, 1 / r**2, rtol=0.015)
+    assert np.allclose(idx.H, 1 / r, rtol=0.008)
+    assert np.all(idx.k2 > 0)  # outward normals: positive curvature (libigl's sign)
+    radial = idx.vertices / np.linalg.norm(idx.vertices, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", idx.vertex_normals, radial) > 0.999)
+    assert np.isclose(idx.scale, np.sqrt(4 * np.pi * r**2), rtol=0.01)
+    assert np.isclose(idx.curvature_radius, idx.radius_edges * idx.avg_edge)
+    # directions: unit, tangent, orthogonal
+    for d in (idx.dir1, idx.dir2):
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0)
+        assert np.abs(np.einsum("ij,ij->i", d, idx.vertex_normals)).max() < 1e-6
+    assert np.abs(np.einsum("ij,ij->i", idx.dir1, idx.dir2)).max() < 1e-6
+
+
+def test_flipped_winding_flips_the_sign(tmp_path):
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    mesh.invert()
+    idx = _index(tmp_path, mesh, "inside_out")
+    assert np.all(idx.k1 < 0)
+    assert np.allclose(idx.H, -1.0, rtol=0.02)
+    assert np.allclose(idx.K, 1.0, rtol=0.04)  # K does not change sign
+
+
+def test_cylinder_side_curvature(tmp_path):
+    r = 1.0
+    mesh = _cylinder(r=r)
+    assert mesh.is_watertight
+    assert mesh.volume > 0
+    idx = _index(tmp_path, mesh, "cylinder")
+    assert idx.closed
+    radius = np.hypot(idx.vertices[:, 0], idx.vertices[:, 1])
+    side = (np.abs(idx.vertices[:, 2]) < 1.5) & np.isclose(radius, r)
+    assert side.sum() > 5000
+    # Measured: |K| <= 1.6e-4 and |H - 1/(2r)| / (1/(2r)) <= 2.0e-3 away from the rims.
+    assert np.abs(idx.K[side]).max() < 1e-3
+    assert np.allclose(idx.H[side], 1 / (2 * r), rtol=5e-3)
+    assert np.allclose(idx.k1[side], 1 / r, rtol=5e-3)
+    # the maximal direction goes round the cylinder, the minimal one along its axis
+    assert np.abs(idx.dir2[side, 2]).min() > 0.999
+
+
+def test_ellipsoid_curvature_against_closed_form(ellipsoid_index):
+    idx = ellipsoid_index
+    a, b, c = 1.0, 0.8, 0.5
+    K, H = _ellipsoid_KH(idx.vertices, a, b, c)
+    # The vertices nearest a few directions (the axis ends and general points).
+    dirs = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [1, -2, 0.5], [0.3, 0.2, -1.0]])
+    unit = idx.vertices / [a, b, c]
+    picks = np.argmax(unit @ (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).T, axis=0)
+    # Measured at these points: relative error <= 3.4e-3 (K) and 3.1e-3 (H).
+    assert np.allclose(idx.K[picks], K[picks], rtol=0.01)
+    assert np.allclose(idx.H[picks], H[picks], rtol=0.01)
+    # Everywhere (incl. the irregular valence-5 vertices): measured 2.2e-2 (K), 1.6e-2 (H).
+    assert np.max(np.abs(idx.K / K - 1)) < 0.03
+    assert np.max(np.abs(idx.H / H - 1)) < 0.02
+
+
+def test_bad_vertices_stay_out_of_the_table(tmp_path):
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    far = trimesh.Trimesh([[10, 0, 0], [11, 0, 0], [10, 1, 0]], [[0, 1, 2]])
+    mesh = trimesh.util.concatenate([sphere, far])
+    idx = _index(tmp_path, mesh, "with_island", suffix=".ply")
+    island = np.linalg.norm(idx.vertices, axis=1) > 5
+    assert island.sum() == 3
+    assert not idx.valid[island].any()
+    assert idx.valid[~island].all()
+    assert np.isnan(idx.K[island]).all()
+    assert not idx.closed
+    table = idx._kdtree.data
+    assert np.isfinite(table).all()
+    assert len(table) == idx.valid.sum()
+    everything = idx.lookup(0.0, 0.0, np.inf, np.inf)
+    assert np.array_equal(everything, np.flatnonzero(idx.valid))
+
+
+def test_dangling_vertex_does_not_crash_libigl():
+    # libigl segfaults on unreferenced vertices; _curvatures drops them first.
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    V = np.vstack([sphere.vertices, [[5.0, 5.0, 5.0]]])
+    F = np.ascontiguousarray(sphere.faces, dtype=np.int64)
+    k1, k2, d1, _, valid = index_mod._curvatures(V, F, 2)
+    assert not valid[-1]
+    assert valid[:-1].all()
+    assert np.isnan(k1[-1])
+    clean = index_mod._curvatures(np.ascontiguousarray(V[:-1]), F, 2)
+    assert np.array_equal(k1[:-1], clean[0])
+    assert np.array_equal(k2[:-1], clean[1])
+    assert np.array_equal(d1[-1], np.zeros(3))
+
+
+# ----------------------------------------------------------------------------- lookup
+def _brute(idx, K, H, tol_K, tol_H):
+    ok = idx.valid & (np.abs(idx.K - K) <= tol_K) & (np.abs(idx.H - H) <= tol_H)
+    return np.flatnonzero(ok)
+
+
+def test_lookup_matches_brute_force(ellipsoid_index):
+    idx = ellipsoid_index
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        v = rng.integers(len(idx.vertices))
+        K = idx.K[v] * rng.uniform(0.9, 1.1)
+        H = idx.H[v] * rng.uniform(0.9, 1.1)
+        tol_K = abs(K) * rng.uniform(0.0, 0.3)
+        tol_H = abs(H) * rng.uniform(0.0, 0.3)
+        got = idx.lookup(K, H, tol_K, tol_H)
+        assert got.dtype == np.int64
+        assert np.array_equal(got, _brute(idx, K, H, tol_K, tol_H))
+    # boundary and degenerate boxes: exact values with zero tolerance, one axis free
+    v = 123
+    assert v in idx.lookup(idx.K[v], idx.H[v], 0.0, 0.0)
+    exact = _brute(idx, idx.K[v], idx.H[v], 0.0, 0.0)
+    assert np.array_equal(idx.lookup(idx.K[v], idx.H[v], 0.0, 0.0), exact)
+    for tk, th in [(np.inf, 0.05), (0.1, np.inf)]:
+        assert np.array_equal(idx.lookup(2.0, 1.5, tk, th), _brute(idx, 2.0, 1.5, tk, th))
+    assert len(idx.lookup(-5.0, -3.0, 0.1, 0.1)) == 0
+
+
+def test_lookup_on_a_flat_model(tmp_path):
+    # median |H| is 0 on a box: the K axis falls back to 1 / scale.
+    idx = _index(tmp_path, trimesh.creation.box().subdivide().subdivide(), "box")
+    assert np.isclose(idx._kh_scale, idx.scale / 2)
+    assert np.array_equal(idx.lookup(0.0, 0.0, 1e-9, 1e-9), _brute(idx, 0.0, 0.0, 1e-9, 1e-9))
+    assert len(idx.lookup(0.0, 0.0, 1e-9, 1e-9)) > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        ((np.nan, 0.0, 1.0, 1.0), "K must be a finite number, got nan"),
+        ((0.0, np.inf, 1.0, 1.0), "H must be a finite number, got inf"),
+        (("x", 0.0, 1.0, 1.0), "K must be a finite number, got 'x'"),
+        ((0.0, 0.0, -1.0, 1.0), "tol_K must be a number >= 0, got -1.0"),
+        ((0.0, 0.0, 1.0, np.nan), "tol_H must be a number >= 0, got nan"),
+        ((0.0, 0.0, 1.0, None), "tol_H must be a number >= 0, got None"),
+    ],
+)
+def test_lookup_errors(sphere_index, args, match):
+    with pytest.raises(ValueError, match=match):
+        sphere_index.lookup(*args)
+
+
+# ----------------------------------------------------------------------------- distances
+def test_closest_points_on_a_cube_exact(tmp_path):
+    idx = _index(tmp_path, trimesh.creation.box(extents=(2, 2, 2)), "cube")
+    rng = np.random.default_rng(3)
+    P = rng.uniform(-3, 3, size=(500, 3))
+    dist, closest, face = idx.closest_points(P)
+    q = np.abs(P) - 1.0
+    outside = np.linalg.norm(np.maximum(q, 0), axis=1)
+    inside = -np.minimum(q.max(axis=1), 0)
+    assert np.allclose(dist, outside + inside, atol=1e-12)
+    assert np.allclose(np.linalg.norm(P - closest, axis=1), dist)
+    assert face.dtype == np.int64
+    assert np.all((face >= 0) & (face < len(idx.faces)))
+
+
+def test_closest_points_near_a_sphere(sphere_index):
+    idx = sphere_index
+    r = 2.0
+    rng = np.random.default_rng(4)
+    dirs = rng.normal(size=(400, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    P = dirs * rng.uniform(0.5 * r, 1.5 * r, size=(400, 1))
+    dist, closest, face = idx.closest_points(P)
+    # The mesh lies between the sphere and the planes of its faces.
+    tri = idx.vertices[idx.faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    inner = np.abs(np.einsum("ij,ij->i", n / np.linalg.norm(n, axis=1, keepdims=True), tri[:, 0]))
+    sag = r - inner.min()
+    assert np.all(np.abs(dist - np.abs(np.linalg.norm(P, axis=1) - r)) <= sag + 1e-12)
+    # each closest point lies on its face
+    fn = n[face] / np.linalg.norm(n[face], axis=1, keepdims=True)
+    assert np.abs(np.einsum("ij,ij->i", closest - tri[face, 0], fn)).max() < 1e-12
+    w = index_mod._barycentric(closest, tri[face, 0], tri[face, 1], tri[face, 2])
+    assert np.allclose(np.einsum("ni,nij->nj", w, tri[face]), closest, atol=1e-12)
+    # no points: empty answers
+    d0, c0, f0 = idx.closest_points(np.zeros((0, 3)))
+    assert d0.shape == (0,)
+    assert c0.shape == (0, 3)
+    assert f0.shape == (0,)
+
+
+@pytest.mark.parametrize(
+    ("points", "match"),
+    [
+        (np.zeros(3), r"points must have shape \(n, 3\), got \(3,\)"),
+        (np.zeros((4, 2)), r"points must have shape \(n, 3\), got \(4, 2\)"),
+        (np.array([[0.0, np.nan, 0.0]]), "points must be finite"),
+    ],
+)
+def test_closest_points_errors(sphere_index, points, match):
+    with pytest.raises(ValueError, match=match):
+        sphere_index.closest_points(points)
+
+
+def test_interpolated_normals(sphere_index):
+    idx = sphere_index
+    rng = np.random.default_rng(5)
+    P = rng.normal(size=(300, 3)) * 3
+    _, closest, face = idx.closest_points(P)
+    normals = idx.interpolated_normals(closest, face)
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0)
+    radial = closest / np.linalg.norm(closest, axis=1, keepdims=True)
+    assert np.einsum("ij,ij->i", normals, radial).min() > 0.9999
+    # at a vertex the blend is that vertex's normal
+    f = np.arange(10)
+    corner = idx.faces[f, 1]
+    got = idx.interpolated_normals(idx.vertices[corner], f)
+    assert np.allclose(got, idx.vertex_normals[corner], atol=1e-12)
+    assert idx.interpolated_normals(np.zeros((0, 3)), np.zeros(0, dtype=int)).shape == (0, 3)
+
+
+@pytest.mark.parametrize(
+    ("closest", "face", "match"),
+    [
+        (np.zeros((2, 2)), np.zeros(2, dtype=int), r"closest must have shape \(n, 3\)"),
+        (np.zeros((2, 3)), np.zeros(3, dtype=int), r"face must have shape \(2,\), got \(3,\)"),
+        (np.zeros((2, 3)), np.zeros(2), "face must hold integers, got dtype float64"),
+        (np.zeros((1, 3)), np.array([10**7]), "face must index faces 0..5119"),
+        (np.zeros((1, 3)), np.array([-1]), "face must index faces"),
+    ],
+)
+def test_interpolated_normals_errors(sphere_index, closest, face, match):
+    with pytest.raises(ValueError, match=match):
+        sphere_index.interpolated_normals(closest, face)
+
+
+# ----------------------------------------------------------------------------- caching
+def test_cached_load_is_equal_and_flagged(tmp_path):
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    first = _index(tmp_path, mesh, "ball")
+    second = ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache")
+    assert not first.from_cache
+    assert second.from_cache
+    assert second.build_seconds == first.build_seconds
+    for f in dataclasses.fields(ModelIndex):
+        if f.name.startswith("_") or f.name in ("from_cache", "load_seconds"):
+            continue
+        a, b = getattr(first, f.name), getattr(second, f.name)
+        if isinstance(a, np.ndarray):
+            assert a.dtype == b.dtype
+            assert np.array_equal(a, b, equal_nan=True), f.name
+        else:
+            assert a == b, f.name
+    assert second.name == "ball"
+    assert len(list((tmp_path / "cache").iterdir())) == 1
+    assert not second.vertices.flags.writeable
+    assert "ball" in repr(second)
+    # force rebuilds
+    assert not ModelIndex.from_file(
+        tmp_path / "ball.stl", cache_dir=tmp_path / "cache", force=True
+    ).from_cache
+
+
+def test_cache_rebuilds_on_changed_bytes_or_params(tmp_path):
+    path = tmp_path / "thing.obj"
+    trimesh.creation.icosphere(subdivisions=2).export(path)
+    cache = tmp_path / "cache"
+    assert not ModelIndex.from_file(path, cache_dir=cache).from_cache
+    assert ModelIndex.from_file(path, cache_dir=cache).from_cache
+    params = IndexParams(min_radius=3, max_radius=3)
+    changed = ModelIndex.from_file(path, params=params, cache_dir=cache)
+    assert not changed.from_cache
+    assert changed.radius_edges == 3
+    assert ModelIndex.from_file(path, params=params, cache_dir=cache).from_cache
+    path.write_text(path.read_text() + "\n# a comment changes the bytes\n")
+    assert not ModelIndex.from_file(path, cache_dir=cache).from_cache
+
+
+def test_corrupt_cache_file_warns_and_rebuilds(tmp_path):
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    good = _index(tmp_path, mesh, "ball")
+    (entry,) = (tmp_path / "cache").iterdir()
+    entry.write_bytes(entry.read_bytes()[:1000])
+    with pytest.warns(CacheWarning, match="unreadable"):
+        again = ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache")
+    assert not again.from_cache
+    assert np.array_equal(again.K, good.K)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache").from_cache
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == [entry.name]
+
+
+def test_inconsistent_cache_entry_warns_and_rebuilds(tmp_path):
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    _index(tmp_path, mesh, "ball")
+    (entry,) = (tmp_path / "cache").iterdir()
+    # A well-formed entry (right key and checksum) whose arrays do not fit together.
+    from meshrec.cache import ArrayCache
+
+    with np.load(entry) as z:
+        arrays = {k: z[k] for k in z.files if not k.startswith("__")}
+        key = str(z["__cache_key__"])
+    arrays["k1"] = arrays["k1"][:-1]
+    ArrayCache(entry.parent).save(key, arrays, label="ball")
+    with pytest.warns(CacheWarning, match=r"inconsistent \(k1 must have shape"):
+        idx = ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache")
+    assert not idx.from_cache
+
+
+def test_unwritable_cache_still_works(tmp_path):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a folder")
+    with pytest.warns(CacheWarning, match="continuing without caching"):
+        idx = _index(
+            tmp_path,
+            trimesh.creation.icosphere(subdivisions=2),
+            "ball",
+            cache_dir=blocker / "cache",
+        )
+    assert not idx.from_cache
+    assert idx.valid.all()
+
+
+def test_read_only_cache_still_works(tmp_path, monkeypatch):
+    from meshrec import cache as cache_mod
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(cache_mod.tempfile, "mkstemp", refuse)
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    for _ in range(2):
+        with pytest.warns(CacheWarning, match="continuing without caching"):
+            idx = _index(tmp_path, mesh, "ball")
+        assert not idx.from_cache
+        assert idx.valid.all()
+
+
+def test_default_cache_dir_comes_from_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv("MESHREC_CACHE_DIR", str(tmp_path / "envcache"))
+    path = tmp_path / "models" / "ball.off"
+    path.parent.mkdir()
+    trimesh.creation.icosphere(subdivisions=2).export(path)
+    ModelIndex.from_file(path)
+    assert len(list((tmp_path / "envcache").iterdir())) == 1
+    assert sorted(p.name for p in path.parent.iterdir()) == ["ball.off"]  # model folder untouched
+
+
+# ----------------------------------------------------------------------------- errors
+def test_from_file_errors(tmp_path):
+    with pytest.raises(ValueError, match=r"params must be an IndexParams or None, got \{\}"):
+        ModelIndex.from_file(tmp_path / "x.stl", params={}, cache_dir=tmp_path)
+    with pytest.raises(ValueError, match=r"x\.stl.*does not exist"):
+        ModelIndex.from_file(tmp_path / "x.stl", cache_dir=tmp_path)
+    (tmp_path / "bad.stl").write_bytes(b"\x00" * 10)
+    with pytest.raises(ValueError, match=r"bad\.stl"):
+        ModelIndex.from_file(tmp_path / "bad.stl", cache_dir=tmp_path / "cache")
+
+
+def test_constructor_checks_shapes(sphere_index):
+    base = {f.name: getattr(sphere_index, f.name) for f in dataclasses.fields(ModelIndex) if f.init}
+    n = len(base["vertices"])
+    with pytest.raises(ValueError, match=rf"k2 must have shape \({n},\), got \(3,\)"):
+        ModelIndex(**{**base, "k2": np.zeros(3)})
+    with pytest.raises(ValueError, match=r"vertices must have shape \(n, 3\), got \(5,\)"):
+        ModelIndex(**{**base, "vertices": np.zeros(5)})
+    with pytest.raises(ValueError, match="faces must hold at least one triangle"):
+        ModelIndex(**{**base, "faces": np.zeros((0, 3), dtype=np.int64)})
+    with pytest.raises(ValueError, match=rf"faces must index vertices 0..{n - 1}, got range"):
+        ModelIndex(**{**base, "faces": base["faces"] + 1})
+    copy = ModelIndex(**base)
+    box = (0.25, 0.5, 0.01, 0.01)
+    assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))
+
+
+def test_pickle_roundtrip_rebuilds_the_trees(sphere_index):
+    copy = pickle.loads(pickle.dumps(sphere_index))
+    assert copy.name == sphere_index.name
+    assert copy.load_seconds == sphere_index.load_seconds
+    assert np.array_equal(copy.K, sphere_index.K)
+    P = np.array([[0.0, 0.0, 3.0], [1.0, 1.0, 0.5]])
+    for a, b in zip(copy.closest_points(P), sphere_index.closest_points(P), strict=True):
+        assert np.array_equal(a, b)
+    box = (0.25, 0.5, 0.01, 0.01)
+    assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))

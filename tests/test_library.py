@@ -1,0 +1,161 @@
+"""Tests for meshrec.library: folders of models and the bundled libraries."""
+
+import pytest
+import trimesh
+
+from meshrec import library as library_mod
+from meshrec.index import IndexParams, ModelIndex
+from meshrec.library import LibraryWarning, ModelLibrary, bundled_models_dir
+
+
+@pytest.fixture
+def folder(tmp_path):
+    d = tmp_path / "models"
+    d.mkdir()
+    trimesh.creation.icosphere(subdivisions=2).export(d / "ball.stl")
+    trimesh.creation.box().subdivide().export(d / "Box.obj")
+    cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=24)
+    cyl.export(d / "can.ply")
+    (d / "README.txt").write_text("not a model")  # ignored: no mesh ending
+    (d / "sub").mkdir()  # not recursive
+    trimesh.creation.icosphere(subdivisions=1).export(d / "sub" / "hidden.stl")
+    return d
+
+
+def test_from_folder(folder, tmp_path, recwarn):
+    calls = []
+    lib = ModelLibrary.from_folder(
+        folder, cache_dir=tmp_path / "cache", progress=lambda i, n, name: calls.append((i, n, name))
+    )
+    assert len(recwarn) == 0
+    assert lib.folder == folder
+    assert lib.names == ("Box", "ball", "can")
+    assert [m.name for m in lib] == list(lib.names)
+    assert len(lib) == 3
+    assert lib["ball"].path == folder / "ball.stl"
+    assert isinstance(lib["can"], ModelIndex)
+    assert "can" in lib
+    assert "nope" not in lib
+    assert lib.skipped == ()
+    assert calls == [(0, 3, "Box"), (1, 3, "ball"), (2, 3, "can")]
+    assert "ball" in repr(lib)
+    with pytest.raises(KeyError, match="no model named 'nope'"):
+        lib["nope"]
+    # everything cached now; the model folder is untouched
+    again = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    assert all(m.from_cache for m in again)
+    assert sorted(p.name for p in folder.iterdir()) == [
+        "Box.obj",
+        "README.txt",
+        "ball.stl",
+        "can.ply",
+        "sub",
+    ]
+    forced = ModelLibrary.from_folder(
+        folder, params=IndexParams(min_radius=3), cache_dir=tmp_path / "cache", force=True
+    )
+    assert not any(m.from_cache for m in forced)
+    assert all(m.params.min_radius == 3 for m in forced)
+
+
+def test_bad_and_duplicate_files_are_skipped_with_warnings(folder, tmp_path):
+    (folder / "broken.stl").write_bytes(b"\x00garbage" * 5)
+    trimesh.creation.icosphere(subdivisions=1).export(folder / "ball.off")  # same name
+    with pytest.warns(LibraryWarning) as record:
+        lib = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    messages = [str(w.message) for w in record]
+    assert any("broken.stl" in m for m in messages)
+    assert any("ball.stl" in m and "duplicate model name 'ball'" in m for m in messages)
+    assert lib.names == ("Box", "ball", "can")
+    assert lib["ball"].path.name == "ball.off"  # sorted: ball.off comes first
+    skipped = {p.name: why for p, why in lib.skipped}
+    assert set(skipped) == {"broken.stl", "ball.stl"}
+    assert "could not be read" in skipped["broken.stl"] or "no faces" in skipped["broken.stl"]
+
+
+def test_from_files(folder, tmp_path):
+    lib = ModelLibrary.from_files(
+        [folder / "can.ply", str(folder / "ball.stl")], cache_dir=tmp_path / "cache"
+    )
+    assert lib.folder is None
+    assert lib.names == ("ball", "can")
+    with pytest.warns(LibraryWarning, match=r"missing\.stl.*does not exist"):
+        lib = ModelLibrary.from_files(
+            [folder / "missing.stl", folder / "ball.stl"], cache_dir=tmp_path / "cache"
+        )
+    assert lib.names == ("ball",)
+    assert lib.skipped[0][0].name == "missing.stl"
+
+
+def test_from_files_errors(folder, tmp_path):
+    with pytest.raises(ValueError, match="paths must name at least one mesh file, got none"):
+        ModelLibrary.from_files([], cache_dir=tmp_path / "cache")
+    with pytest.raises(ValueError, match="paths must be an iterable of paths, got a single path"):
+        ModelLibrary.from_files(str(folder / "ball.stl"), cache_dir=tmp_path / "cache")
+    with (
+        pytest.warns(LibraryWarning),
+        pytest.raises(ValueError, match=r"no loadable mesh in the given files: nope\.stl"),
+    ):
+        ModelLibrary.from_files([folder / "nope.stl"], cache_dir=tmp_path / "cache")
+    with pytest.raises(ValueError, match="params must be an IndexParams or None, got 3"):
+        ModelLibrary.from_files([folder / "ball.stl"], params=3, cache_dir=tmp_path / "cache")
+
+
+def test_folder_errors(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match=r"model folder '.*empty' holds no mesh file"):
+        ModelLibrary.from_folder(empty, cache_dir=tmp_path / "cache")
+    (empty / "notes.txt").write_text("x")
+    with pytest.raises(ValueError, match="holds no mesh file"):
+        ModelLibrary.from_folder(empty, cache_dir=tmp_path / "cache")
+    with pytest.raises(ValueError, match=r"model folder '.*missing' does not exist"):
+        ModelLibrary.from_folder(tmp_path / "missing", cache_dir=tmp_path / "cache")
+    a_file = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=1).export(a_file)
+    with pytest.raises(ValueError, match=r"model folder '.*ball\.stl' is not a directory"):
+        ModelLibrary.from_folder(a_file, cache_dir=tmp_path / "cache")
+
+
+def test_folder_with_no_loadable_mesh(tmp_path):
+    d = tmp_path / "junk"
+    d.mkdir()
+    (d / "a.stl").write_bytes(b"")
+    (d / "b.ply").write_text("nope")
+    with (
+        pytest.warns(LibraryWarning, match="skipping"),
+        pytest.raises(ValueError, match=r"no loadable mesh in .*junk: a\.stl: .*; b\.ply: "),
+    ):
+        ModelLibrary.from_folder(d, cache_dir=tmp_path / "cache")
+
+
+def test_bundled_models_dir_prefers_the_installed_copy(tmp_path, monkeypatch):
+    installed = tmp_path / "pkg" / "_bundled_models"
+    repo = tmp_path / "repo" / "models"
+    (repo / "surfaces").mkdir(parents=True)
+    (repo / "objects").mkdir(parents=True)
+    monkeypatch.setattr(library_mod, "_bundled_roots", lambda: (installed, repo))
+    assert bundled_models_dir() == repo / "surfaces"
+    assert bundled_models_dir("objects") == repo / "objects"
+    (installed / "surfaces").mkdir(parents=True)
+    assert bundled_models_dir("surfaces") == installed / "surfaces"
+    with pytest.raises(
+        ValueError, match="no bundled model library named 'cars'; available: objects, surfaces"
+    ):
+        bundled_models_dir("cars")
+
+
+def test_bundled_models_dir_errors(tmp_path, monkeypatch):
+    monkeypatch.setattr(library_mod, "_bundled_roots", lambda: (tmp_path / "a", tmp_path / "b"))
+    with pytest.raises(ValueError, match="available: none"):
+        bundled_models_dir("surfaces")
+    for bad in ["", "..", "a/b", None]:
+        with pytest.raises(ValueError, match="name must be a plain library name"):
+            bundled_models_dir(bad)
+
+
+def test_bundled_roots_point_at_the_package_and_the_repo():
+    installed, repo = library_mod._bundled_roots()
+    assert installed.name == "_bundled_models"
+    assert installed.parent.name == "meshrec"
+    assert repo == installed.parents[1] / "models"
