@@ -55,10 +55,10 @@ MAX_STEP_TO_NEIGHBOUR_RATIO = 6.0
 COMMON_POINT_ITERATIONS = 5
 
 # --- candidate lookup (Section 2.1) --------------------------------------------------------
-#: Relative tolerance on each principal curvature: |k_mesh - k_data| <= rel * max|k| + abs.
-CANDIDATE_REL_TOL = 0.25
-#: Absolute tolerance on each principal curvature, in units of 1 / (curve half-length).
-CANDIDATE_ABS_TOL = 0.15
+#: Tolerance on each principal curvature:
+#: |k_mesh - k_data| <= REL_TOL * max|k| + NOISE_FACTOR * fit_rms / half_length^2.
+CANDIDATE_REL_TOL = 0.05
+CANDIDATE_NOISE_FACTOR = 12.0
 #: Candidates closer than this fraction of the curves' half-length are merged (one basin).
 CANDIDATE_SPACING_FRACTION = 0.5
 #: Most candidates kept per model and side after spreading them over the surface.
@@ -77,12 +77,18 @@ PHI_XTOL = 2e-3
 # --- local search on surface charts (Section 2.2.1) and final refinement --------------------
 #: Candidates (best by their phi error) that get a full local search.
 LOCAL_SEARCHES = 8
+#: Candidates whose best sampled phi error exceeds this factor times the best candidate's
+#: are not searched (the paper's example: right-basin starts within a factor of 2).
+SEARCH_PRUNE_RATIO = 3.0
 #: Chart re-centrings at most per local search.
 MAX_RECENTRES = 6
 #: A re-centring smaller than this fraction of the half-length ends the local search.
 RECENTRE_TOL_FRACTION = 1e-3
 #: Function evaluations allowed for one chart's least-squares solve.
-CHART_MAX_EVALS = 60
+CHART_MAX_EVALS = 30
+#: Relative tolerance (ftol and xtol) of one chart's least-squares solve; the rigid
+#: refinement that follows polishes the result.
+CHART_TOL = 1e-5
 #: Iterations of the paper's steepest descent (reference method) at most.
 STEEPEST_MAX_ITER = 300
 #: Iterations of the final rigid (6-DOF) refinement at most.

@@ -288,6 +288,8 @@ class ModelIndex:
         Wall time of :meth:`from_file` (hashing, cache load or build, tree building).
     K, H : (n,) float64
         Gaussian ``k1 * k2`` and mean ``(k1 + k2) / 2`` curvature (derived).
+    face_normals : (m, 3) float64
+        Unit face normals following the winding (derived; zero for degenerate faces).
 
     Raises
     ------
@@ -320,6 +322,7 @@ class ModelIndex:
     _table_vertices: np.ndarray = field(init=False, repr=False)
     _kdtree: cKDTree = field(init=False, repr=False)
     _aabb: igl.AABB = field(init=False, repr=False)
+    face_normals: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         def put(name, value):
@@ -379,6 +382,9 @@ class ModelIndex:
         aabb = igl.AABB()
         aabb.init(V, F)
         put("_aabb", aabb)
+        face_normals = igl.per_face_normals(V, F, np.zeros(3))
+        face_normals.setflags(write=False)
+        put("face_normals", face_normals)
 
     def __reduce__(self):
         # The AABB tree cannot be pickled: pickle the fields and rebuild the trees.

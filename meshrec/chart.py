@@ -1,0 +1,123 @@
+"""Surface charts of a mesh: the (u, v) parametrisation used by the local search.
+
+A mesh has no global parametrisation sigma(u, v) like the paper's surfaces, so the local
+search works on charts: around a point q0 on the mesh with tangent frame (d1, d2, n),
+
+    q(u, v) = closest point on the mesh to q0 + u d1 + v d2,
+
+with the normal at q(u, v) interpolated from the vertex normals (continuous across faces)
+and the tangent frame transported by projecting d1 onto the new tangent plane. A chart is
+valid while (u, v) stays well inside the local radius of curvature; the search re-centres
+a new chart at its current point after each solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["SurfaceChart", "SurfacePoint", "rotation_z", "tangent_frame"]
+
+
+@dataclass(frozen=True)
+class SurfacePoint:
+    """A point on the model with its tangent frame.
+
+    Attributes
+    ----------
+    point : (3,) float
+        Position on the mesh surface, model coordinates.
+    frame : (3, 3) float
+        Columns d1, d2, n: an orthonormal right-handed frame, n the surface normal.
+    """
+
+    point: np.ndarray
+    frame: np.ndarray
+
+    @property
+    def normal(self) -> np.ndarray:
+        """(3,) float: the unit surface normal."""
+        return self.frame[:, 2]
+
+
+def tangent_frame(normal: np.ndarray, hint: np.ndarray | None = None) -> np.ndarray:
+    """Build an orthonormal right-handed frame (d1, d2, n) around a normal.
+
+    Parameters
+    ----------
+    normal : (3,) float
+        Unit normal, the frame's third column.
+    hint : (3,) float, optional
+        A direction for d1; it is projected onto the tangent plane. When absent or
+        (nearly) parallel to the normal, the world axis least aligned with it is used.
+
+    Returns
+    -------
+    (3, 3) float
+    """
+    n = normal / np.linalg.norm(normal)
+    d1 = None
+    if hint is not None:
+        d1 = hint - np.dot(hint, n) * n
+        if np.linalg.norm(d1) < 1e-8 * max(1.0, np.linalg.norm(hint)):
+            d1 = None
+    if d1 is None:
+        axis = np.eye(3)[int(np.argmin(np.abs(n)))]
+        d1 = axis - np.dot(axis, n) * n
+    d1 = d1 / np.linalg.norm(d1)
+    d2 = np.cross(n, d1)
+    return np.column_stack([d1, d2, n])
+
+
+def rotation_z(phi) -> np.ndarray:
+    """Rotation(s) by ``phi`` about the z axis.
+
+    Parameters
+    ----------
+    phi : float or (k,) float
+
+    Returns
+    -------
+    (3, 3) float, or (k, 3, 3) float for an array of angles.
+    """
+    phi = np.asarray(phi, dtype=np.float64)
+    c, s = np.cos(phi), np.sin(phi)
+    zero, one = np.zeros_like(phi), np.ones_like(phi)
+    R = np.stack(
+        [np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)],
+        -2,
+    )
+    return R
+
+
+class SurfaceChart:
+    """A chart of the mesh around ``origin``: (u, v) -> a point with a transported frame.
+
+    Parameters
+    ----------
+    model : ModelIndex
+        The mesh (its closest-point queries and interpolated normals).
+    origin : SurfacePoint
+        The chart's centre q0 and its frame (d1, d2, n).
+    """
+
+    def __init__(self, model, origin: SurfacePoint):
+        self.model = model
+        self.origin = origin
+
+    def at(self, u: float, v: float) -> SurfacePoint:
+        """The surface point at chart coordinates (u, v), model units.
+
+        Returns
+        -------
+        SurfacePoint
+        """
+        d1, d2, n0 = self.origin.frame.T
+        x = self.origin.point + u * d1 + v * d2
+        _, closest, face = self.model.closest_points(x[None, :])
+        n = self.model.interpolated_normals(closest, face)[0]
+        if np.dot(n, n0) < 0.0:
+            # A fold of the mesh within the chart: keep the side we started on.
+            n = -n
+        return SurfacePoint(point=closest[0], frame=tangent_frame(n, hint=d1))

@@ -1,0 +1,263 @@
+"""The ``meshrec`` command line: parses arguments and calls the public API, nothing more."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__, defaults
+from .library import ModelLibrary, bundled_models_dir
+from .recognize import Recognition, recognize
+from .simulate import simulate_touch
+from .touch import TouchData
+
+__all__ = ["main", "recognition_to_json"]
+
+
+def _vector(text: str) -> np.ndarray:
+    parts = text.replace(" ", "").split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
+    if len(values) != 3 or not np.all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
+    return np.array(values)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="meshrec",
+        description="Recognise a touched object, and where it was touched, from three "
+        "probe curves against a folder of STL/OBJ models.",
+    )
+    p.add_argument("--version", action="version", version=f"meshrec {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def models_arg(sp):
+        sp.add_argument(
+            "--models",
+            type=Path,
+            default=None,
+            help="folder of model meshes (default: the bundled paper surfaces)",
+        )
+        sp.add_argument(
+            "--cache-dir",
+            type=Path,
+            default=None,
+            help="index cache folder (default: $MESHREC_CACHE_DIR or the user cache)",
+        )
+
+    r = sub.add_parser("recognize", help="rank the models by how well the touch fits them")
+    r.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
+    models_arg(r)
+    r.add_argument("--contact", type=_vector, help="the curves' common point X,Y,Z")
+    r.add_argument("--normal", type=_vector, help="approximate outward normal X,Y,Z")
+    r.add_argument("--top", type=int, default=None, help="show only the N best models")
+    r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    r.add_argument(
+        "--method",
+        choices=("lm", "steepest"),
+        default=defaults.SEARCH_METHOD,
+        help="local search: least squares on charts (lm) or the paper's steepest descent",
+    )
+
+    i = sub.add_parser("index", help="build or refresh the cached model indexes")
+    models_arg(i)
+    i.add_argument("--force", action="store_true", help="rebuild even if cached")
+
+    s = sub.add_parser("simulate", help="simulate a touch on a model (three plane sections)")
+    s.add_argument("model_file", help="model mesh file, or the name of a bundled model")
+    s.add_argument("-o", "--output", type=Path, required=True, help="touch file to write")
+    s.add_argument("--truth", type=Path, help="JSON file for the true contact and transform")
+    s.add_argument("--seed", type=int, default=None, help="random seed")
+    s.add_argument("--noise", type=float, default=defaults.SIM_NOISE, help="uniform noise +-A")
+    s.add_argument("--points", type=int, default=defaults.SIM_POINTS, help="points per curve")
+    s.add_argument("--length", type=float, default=None, help="curve length (model units)")
+    s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
+    return p
+
+
+def _progress_printer(stream):
+    tty = stream.isatty()
+
+    def progress(i: int, n: int, name: str) -> None:
+        if tty:
+            width = 30
+            done = int(width * i / max(n, 1))
+            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:30]:<30}")
+            if i + 1 == n:
+                stream.write("\n")
+        else:
+            stream.write(f"indexing {i + 1}/{n}: {name}\n")
+        stream.flush()
+
+    return progress
+
+
+def _resolve_model_file(text: str) -> Path:
+    path = Path(text)
+    if path.exists():
+        return path
+    for lib in ("surfaces", "objects"):
+        folder = bundled_models_dir(lib)
+        for candidate in sorted(folder.glob(f"{text}.*")):
+            return candidate
+    raise ValueError(f"model_file {text}: no such file, nor a bundled model of that name")
+
+
+def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
+    """The JSON document printed by ``meshrec recognize --json``.
+
+    Parameters
+    ----------
+    rec : Recognition
+    top : int, optional
+        Keep only the ``top`` best models.
+
+    Returns
+    -------
+    dict
+    """
+    g = rec.geometry
+    ranking = rec.ranking if top is None else rec.ranking[:top]
+    return {
+        "touch": {
+            "file": rec.touch.source,
+            "points": rec.touch.n_points,
+            "curves": len(rec.touch.curves),
+            "contact": g.point.tolist(),
+            "normal": g.normal.tolist(),
+            "K": float(g.K),
+            "H": float(g.H),
+        },
+        "best": rec.best.model if rec.best is not None else None,
+        "ranking": [
+            {
+                "model": r.model,
+                "file": r.path,
+                "error": r.error,
+                "contact": None if r.contact is None else r.contact.tolist(),
+                "transform": None if r.T_model_touch is None else r.T_model_touch.tolist(),
+                "candidates": r.candidates,
+                "seconds": r.seconds,
+            }
+            for r in ranking
+        ],
+    }
+
+
+def _print_table(rec: Recognition, top: int | None, out) -> None:
+    g = rec.geometry
+    out.write(
+        f"touch: {rec.touch.n_points} points on {len(rec.touch.curves)} curves; "
+        f"contact {np.array2string(g.point, precision=5)}, "
+        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}\n"
+    )
+    ranking = rec.ranking if top is None else rec.ranking[:top]
+    out.write(f"{'rank':>4}  {'model':<24} {'error/point':>12} {'cand.':>6} {'s':>6}  contact\n")
+    for k, r in enumerate(ranking, start=1):
+        if r.rejected:
+            out.write(f"{k:>4}  {r.model:<24} {'-':>12} {0:>6} {r.seconds:>6.2f}  {r.reason}\n")
+        else:
+            c = np.array2string(r.contact, precision=5)
+            out.write(
+                f"{k:>4}  {r.model:<24} {r.error:>12.4g} {r.candidates:>6} "
+                f"{r.seconds:>6.2f}  {c}\n"
+            )
+    best = rec.best.model if rec.best is not None else "none (every model was rejected)"
+    out.write(f"recognised: {best}  ({rec.seconds:.2f} s)\n")
+
+
+def _library(args, progress=None) -> ModelLibrary:
+    folder = args.models if args.models is not None else bundled_models_dir("surfaces")
+    return ModelLibrary.from_folder(
+        folder, cache_dir=args.cache_dir, force=getattr(args, "force", False), progress=progress
+    )
+
+
+def _run(args) -> int:
+    if args.command == "recognize":
+        if args.top is not None and args.top < 1:
+            raise ValueError(f"--top must be at least 1, got {args.top}")
+        touch = TouchData.from_file(args.touch_file)
+        if args.contact is not None or args.normal is not None:
+            touch = touch.with_hints(contact=args.contact, normal=args.normal)
+        library = _library(args)
+        rec = recognize(touch, library, method=args.method)
+        if args.json:
+            sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
+        else:
+            _print_table(rec, args.top, sys.stdout)
+        return 0
+    if args.command == "index":
+        library = _library(args, progress=_progress_printer(sys.stderr))
+        for m in library.models:
+            how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
+            sys.stdout.write(
+                f"{m.name:<24} {len(m.faces):>8} faces  {int(m.valid.sum()):>8} table entries  "
+                f"{how}\n"
+            )
+        return 0
+    # simulate
+    model_file = _resolve_model_file(args.model_file)
+    sim = simulate_touch(
+        model_file,
+        contact=args.contact,
+        rng=args.seed,
+        n_points=args.points,
+        noise=args.noise,
+        length=args.length,
+    )
+    sim.write(args.output, args.truth)
+    c = np.array2string(sim.contact, precision=5)
+    sys.stdout.write(
+        f"wrote {args.output}: {len(sim.touch.curves)} curves x {args.points} points on "
+        f"{sim.model}, true contact {c}" + (f"; truth in {args.truth}" if args.truth else "") + "\n"
+    )
+    return 0
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    (file or sys.stderr).write(f"meshrec: warning: {message}\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``meshrec`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 on bad input (one line on stderr, no traceback).
+    """
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    previous = warnings.showwarning
+    warnings.showwarning = _one_line_warning
+    try:
+        return _run(args)
+    except ValueError as exc:
+        sys.stderr.write(f"meshrec: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("meshrec: interrupted\n")
+        return 130
+    finally:
+        warnings.showwarning = previous
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,148 @@
+"""The initial rotation phi about the normal: discretise, bracket every minimum, refine.
+
+Section 2.2.1 of the paper: with the contact fixed at a candidate point, the error depends
+on phi alone. [0, 2 pi) is discretised, every local minimum of the sampled error is
+bracketed by its two neighbours, and each bracket is refined (the paper bisects; we use
+scipy's bounded Brent method, a bracketing refinement that needs fewer evaluations).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from . import defaults
+
+__all__ = ["PhiSearch", "bracket_minima", "search_phi"]
+
+
+@dataclass(frozen=True)
+class PhiSearch:
+    """Result of the phi search at one candidate.
+
+    Attributes
+    ----------
+    phi : float
+        The angle with the smallest refined error, radians in [0, 2 pi).
+    error : float
+        The error at ``phi``.
+    grid : (s,) float
+        The sampled angles.
+    grid_errors : (s,) float
+        The error at each sampled angle.
+    minima : (m, 2) float
+        Every refined local minimum as rows (phi, error), best first.
+    """
+
+    phi: float
+    error: float
+    grid: np.ndarray
+    grid_errors: np.ndarray
+    minima: np.ndarray
+
+
+def bracket_minima(values: np.ndarray) -> np.ndarray:
+    """Indices of the local minima of samples on a circle.
+
+    A plateau counts once (its first index). A constant sequence has one minimum, index 0.
+
+    Parameters
+    ----------
+    values : (s,) float
+        Samples at equally spaced angles around the circle.
+
+    Returns
+    -------
+    (m,) int
+        Indices i with values[i] <= both circular neighbours (strictly below the left
+        one, so that a plateau is not reported twice).
+
+    Raises
+    ------
+    ValueError
+        If ``values`` has fewer than 3 samples or a non-finite value.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim != 1 or len(values) < 3:
+        raise ValueError(f"values must be (s,) with s >= 3, got {values.shape}")
+    if not np.all(np.isfinite(values)):
+        raise ValueError("values must be finite")
+    left, right = np.roll(values, 1), np.roll(values, -1)
+    idx = np.flatnonzero((values < left) & (values <= right))
+    if len(idx) == 0:
+        idx = np.array([int(np.argmin(values))])
+    return idx
+
+
+def search_phi(
+    error: Callable[[np.ndarray], np.ndarray],
+    steps: int = defaults.PHI_STEPS,
+    refine_ratio: float = defaults.PHI_REFINE_RATIO,
+    xtol: float = defaults.PHI_XTOL,
+    grid_errors: np.ndarray | None = None,
+) -> PhiSearch:
+    """Find the phi minimising ``error`` by discretising, bracketing and refining.
+
+    Parameters
+    ----------
+    error : callable
+        ``error(phis)`` maps a (k,) array of angles to their (k,) errors.
+    steps : int
+        Number of samples of [0, 2 pi).
+    refine_ratio : float
+        Brackets whose sampled error exceeds ``refine_ratio`` times the best sampled error
+        are not refined (they cannot become the best minimum in practice).
+    xtol : float
+        Absolute tolerance of the refinement, radians.
+    grid_errors : (steps,) float, optional
+        The errors at the ``steps`` sampled angles ``2 pi i / steps``, if already computed
+        (for example for many candidates in one batched query).
+
+    Returns
+    -------
+    PhiSearch
+
+    Raises
+    ------
+    ValueError
+        If ``steps`` < 3, ``refine_ratio`` < 1, or ``grid_errors`` is not (steps,).
+    """
+    if int(steps) != steps or steps < 3:
+        raise ValueError(f"steps must be an integer >= 3, got {steps!r}")
+    if not refine_ratio >= 1.0:
+        raise ValueError(f"refine_ratio must be >= 1, got {refine_ratio!r}")
+    step = 2.0 * np.pi / steps
+    grid = np.arange(steps) * step
+    if grid_errors is None:
+        values = np.asarray(error(grid), dtype=np.float64)
+    else:
+        values = np.asarray(grid_errors, dtype=np.float64)
+        if values.shape != (steps,):
+            raise ValueError(f"grid_errors must be ({steps},), got {values.shape}")
+    best_sample = float(values.min())
+    minima = []
+    for i in bracket_minima(values):
+        if values[i] > refine_ratio * best_sample + 1e-300:
+            continue
+        res = minimize_scalar(
+            lambda x: float(error(np.array([x]))[0]),
+            bounds=(grid[i] - step, grid[i] + step),
+            method="bounded",
+            options={"xatol": xtol},
+        )
+        phi, val = float(res.x), float(res.fun)
+        if values[i] < val:  # the refinement cannot be worse than its bracket's sample
+            phi, val = float(grid[i]), float(values[i])
+        minima.append((phi % (2.0 * np.pi), val))
+    minima.sort(key=lambda m: m[1])
+    table = np.array(minima, dtype=np.float64).reshape(-1, 2)
+    return PhiSearch(
+        phi=float(table[0, 0]),
+        error=float(table[0, 1]),
+        grid=grid,
+        grid_errors=values,
+        minima=table,
+    )
