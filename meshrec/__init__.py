@@ -1,3 +1,51 @@
-"""meshrec: recognise a touched object from three probe curves against a folder of meshes."""
+"""meshrec: recognise a touched object, and where it was touched, from three probe curves.
+
+The method is that of "Surface Recognition by Registering Data Curves from Touch", on
+meshes: the curves' local geometry (normal, Gaussian and mean curvature) is looked up in
+each model's per-vertex curvature table for candidate contacts, and a local search on
+surface charts finds the superposition with the least point-to-surface error.
+
+Typical use::
+
+    import meshrec
+    library = meshrec.ModelLibrary.from_folder("my_models/")
+    touch = meshrec.TouchData.from_file("touch.csv")
+    result = meshrec.recognize(touch, library)
+    print(result.best.model, result.best.contact, result.best.T_model_touch)
+"""
 
 __version__ = "0.1.0"
+
+from .geometry import CommonPoint, LocalGeometry, estimate_local_geometry, find_common_point
+from .index import IndexParams, ModelIndex
+from .library import ModelLibrary, bundled_models_dir
+from .mesh import load_mesh
+from .paper import PAPER_SURFACES, localisation_error, symmetry_rotations
+from .recognize import Recognition, recognize
+from .register import Registration, StageTimes, register
+from .simulate import SimulatedTouch, simulate_touch
+from .touch import TouchData
+
+__all__ = [
+    "PAPER_SURFACES",
+    "CommonPoint",
+    "IndexParams",
+    "LocalGeometry",
+    "ModelIndex",
+    "ModelLibrary",
+    "Recognition",
+    "Registration",
+    "SimulatedTouch",
+    "StageTimes",
+    "TouchData",
+    "__version__",
+    "bundled_models_dir",
+    "estimate_local_geometry",
+    "find_common_point",
+    "load_mesh",
+    "localisation_error",
+    "recognize",
+    "register",
+    "simulate_touch",
+    "symmetry_rotations",
+]

@@ -18,6 +18,8 @@ from .touch import TouchData
 
 __all__ = ["main", "recognition_to_json"]
 
+_VECTOR_OPTIONS = ("--contact", "--normal")
+
 
 def _vector(text: str) -> np.ndarray:
     parts = text.replace(" ", "").split(",")
@@ -30,8 +32,15 @@ def _vector(text: str) -> np.ndarray:
     return np.array(values)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr and exit status 2."""
+
+    def error(self, message):
+        self.exit(2, f"meshrec: error: {message} (see '{self.prog} --help')\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="meshrec",
         description="Recognise a touched object, and where it was touched, from three "
         "probe curves against a folder of STL/OBJ models.",
@@ -223,6 +232,20 @@ def _run(args) -> int:
     return 0
 
 
+def _join_vector_options(argv: list[str]) -> list[str]:
+    """Let ``--contact -1,2,3`` through: argparse takes ``-1,2,3`` for an option."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in _VECTOR_OPTIONS and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
     (file or sys.stderr).write(f"meshrec: warning: {message}\n")
 
@@ -241,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         0 on success, 2 on bad input (one line on stderr, no traceback).
     """
     parser = _parser()
+    argv = _join_vector_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:

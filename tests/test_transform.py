@@ -1,6 +1,7 @@
 """Tests for meshrec.transform and the frame helpers of meshrec.chart."""
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from meshrec.candidates import curvature_tolerance, spread_points
@@ -68,9 +69,7 @@ def test_curvature_tolerance_propagates_to_k_and_h():
 
 
 def test_curvature_tolerance_errors():
-    import pytest
-
-    with pytest.raises(ValueError, match="half_length must be positive, got 0.0"):
+    with pytest.raises(ValueError, match=r"half_length must be positive, got 0\.0"):
         curvature_tolerance(1.0, 1.0, 0.0, 0.001)
     with pytest.raises(ValueError, match="fit_rms must be non-negative"):
         curvature_tolerance(1.0, 1.0, 0.3, -1.0)

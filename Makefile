@@ -1,0 +1,36 @@
+# The README's two commands: `make demo` (the main job) and `make test` (the test suite).
+# Both create ./.venv and install meshrec with what it needs on first use.
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+OUT    ?= out
+SEED   ?= 7
+
+.PHONY: install demo test lint clean
+
+$(BIN)/.meshrec-installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $@
+
+install: $(BIN)/.meshrec-installed
+
+## demo: simulate a touch on a bundled model and recognise it among the paper's surfaces
+demo: install
+	mkdir -p $(OUT)
+	$(BIN)/meshrec index --models models/surfaces
+	$(BIN)/meshrec simulate models/surfaces/ellipsoid.stl -o $(OUT)/touch.csv \
+		--truth $(OUT)/truth.json --seed $(SEED)
+	$(BIN)/meshrec recognize $(OUT)/touch.csv --models models/surfaces
+
+## test: lint and run the test suite
+test: install lint
+	$(BIN)/python -m pytest -q
+
+lint: install
+	$(BIN)/ruff check .
+
+clean:
+	rm -rf $(OUT) .pytest_cache .ruff_cache

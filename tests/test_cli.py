@@ -1,0 +1,172 @@
+"""The ``meshrec`` command line, run as the real console script and in-process."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pytest
+
+from meshrec.cli import main
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+SCRIPT = Path(sys.executable).with_name("meshrec")
+
+VECTOR = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+MATRIX = {
+    "type": "array",
+    "minItems": 4,
+    "maxItems": 4,
+    "items": {"type": "array", "items": {"type": "number"}, "minItems": 4, "maxItems": 4},
+}
+#: The schema of ``meshrec recognize --json`` as the issue specifies it.
+SCHEMA = {
+    "type": "object",
+    "required": ["touch", "best", "ranking"],
+    "additionalProperties": False,
+    "properties": {
+        "touch": {
+            "type": "object",
+            "required": ["file", "points", "curves", "contact", "normal", "K", "H"],
+            "additionalProperties": False,
+            "properties": {
+                "file": {"type": ["string", "null"]},
+                "points": {"type": "integer", "minimum": 15},
+                "curves": {"type": "integer", "minimum": 3},
+                "contact": VECTOR,
+                "normal": VECTOR,
+                "K": {"type": "number"},
+                "H": {"type": "number"},
+            },
+        },
+        "best": {"type": ["string", "null"]},
+        "ranking": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "required": [
+                    "model",
+                    "file",
+                    "error",
+                    "contact",
+                    "transform",
+                    "candidates",
+                    "seconds",
+                ],
+                "additionalProperties": False,
+                "properties": {
+                    "model": {"type": "string"},
+                    "file": {"type": "string"},
+                    "error": {"type": ["number", "null"], "minimum": 0},
+                    "contact": {"oneOf": [VECTOR, {"type": "null"}]},
+                    "transform": {"oneOf": [MATRIX, {"type": "null"}]},
+                    "candidates": {"type": "integer", "minimum": 0},
+                    "seconds": {"type": "number", "minimum": 0},
+                },
+            },
+        },
+    },
+}
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    cache = tmp_path_factory.mktemp("cache")
+    return {**os.environ, "MESHREC_CACHE_DIR": str(cache)}
+
+
+def _run(args, env, cwd):
+    return subprocess.run(
+        [str(SCRIPT), *args], env=env, cwd=cwd, capture_output=True, text=True, timeout=600
+    )
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory, env):
+    folder = tmp_path_factory.mktemp("touch")
+    proc = _run(
+        [
+            "simulate",
+            str(MODELS / "surfaces" / "monkey_saddle.stl"),
+            "-o",
+            "touch.csv",
+            "--truth",
+            "truth.json",
+            "--seed",
+            "3",
+        ],
+        env,
+        folder,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return folder
+
+
+def test_recognize_json_matches_the_schema_and_the_truth(simulated, env):
+    proc = _run(["recognize", "touch.csv", "--json"], env, simulated)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)  # exactly one JSON object
+    jsonschema.validate(doc, SCHEMA)
+    assert doc["best"] == "monkey_saddle"
+    assert len(doc["ranking"]) == 4
+    truth = json.loads((simulated / "truth.json").read_text())
+    top = doc["ranking"][0]
+    T = np.array(top["transform"])
+    contact_touch = np.array(truth["contact_touch"])
+    mapped = T[:3, :3] @ contact_touch + T[:3, 3]
+    assert np.linalg.norm(mapped - np.array(top["contact"])) < 0.05
+    rejected = [r for r in doc["ranking"] if r["error"] is None]
+    assert all(r["contact"] is None and r["transform"] is None for r in rejected)
+
+
+def test_recognize_table_with_hints_and_top(simulated, env):
+    truth = json.loads((simulated / "truth.json").read_text())
+    c = ",".join(str(v) for v in truth["contact_touch"])
+    proc = _run(["recognize", "touch.csv", "--contact", c, "--top", "2"], env, simulated)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    assert lines[-1].startswith("recognised: monkey_saddle")
+    assert len([ln for ln in lines if ln.strip()[:1].isdigit()]) == 2
+
+
+def test_index_reports_progress_and_caches(env, tmp_path):
+    first = _run(["index", "--models", str(MODELS / "surfaces")], env, tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert "indexing 4/4" in first.stderr
+    second = _run(["index", "--models", str(MODELS / "surfaces")], env, tmp_path)
+    assert second.stdout.count("cached") == 4
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["recognize", "missing.csv"], "no such file"),
+        (["recognize", "bad.csv"], "header must be 'curve,x,y,z'"),
+        (["recognize", "touch.csv", "--models", "nowhere"], "nowhere"),
+        (["recognize", "touch.csv", "--top", "0"], "--top must be at least 1"),
+        (["recognize", "touch.csv", "--normal", "1,2"], "expected three finite numbers"),
+        (["simulate", "no_such_model", "-o", "x.csv"], "no such file, nor a bundled model"),
+        (["simulate", "monkey_saddle", "-o", "x.csv", "--points", "4"], "n_points"),
+        (["frobnicate"], "invalid choice"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(simulated, env, args, message):
+    (simulated / "bad.csv").write_text("a,b\n1,2\n")
+    proc = _run(args, env, simulated)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert message in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_main_in_process(simulated, capsys, monkeypatch, env):
+    monkeypatch.setenv("MESHREC_CACHE_DIR", env["MESHREC_CACHE_DIR"])
+    assert main(["recognize", str(simulated / "touch.csv"), "--json", "--top", "1"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert len(doc["ranking"]) == 1
+    assert main(["--version"]) == 0
+    assert main(["recognize", str(simulated / "missing.csv")]) == 2
+    assert "meshrec: error:" in capsys.readouterr().err
