@@ -80,6 +80,11 @@ LOCAL_SEARCHES = 8
 #: Candidates whose best sampled phi error exceeds this factor times the best candidate's
 #: are not searched (the paper's example: right-basin starts within a factor of 2).
 SEARCH_PRUNE_RATIO = 3.0
+#: Candidates (best by their sampled phi error) screened by a few rigid-refinement steps;
+#: the best screened ones get the full phi refinement and local search.
+SCREEN_CANDIDATES = 48
+#: Rigid-refinement iterations of the screening.
+SCREEN_ITERATIONS = 3
 #: Chart re-centrings at most per local search.
 MAX_RECENTRES = 6
 #: A re-centring smaller than this fraction of the half-length ends the local search.

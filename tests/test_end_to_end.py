@@ -126,7 +126,8 @@ def test_steepest_descent_reference_agrees_with_the_default(surfaces):
     model = surfaces["crossed_trough"]
     fast = meshrec.register(sim.touch, model)
     paper = meshrec.register(sim.touch, model, method="steepest", searches=2)
-    assert np.linalg.norm(fast.contact - paper.contact) < 0.02
+    # The trough has four equally good answers (multiples of 90 deg about z).
+    assert meshrec.localisation_error("crossed_trough", fast.contact, paper.contact) < 0.02
     assert paper.error == pytest.approx(fast.error, rel=0.1)
 
 
