@@ -16,6 +16,7 @@ Typical use::
 
 __version__ = "0.1.0"
 
+from .candidates import curvature_tolerance
 from .geometry import CommonPoint, LocalGeometry, estimate_local_geometry, find_common_point
 from .index import IndexParams, ModelIndex
 from .library import ModelLibrary, bundled_models_dir
@@ -40,6 +41,7 @@ __all__ = [
     "TouchData",
     "__version__",
     "bundled_models_dir",
+    "curvature_tolerance",
     "estimate_local_geometry",
     "find_common_point",
     "load_mesh",
