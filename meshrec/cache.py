@@ -28,8 +28,9 @@ import numpy as np
 
 from . import __version__
 
-#: Bumped when the layout of the cache files changes.
-_FORMAT = 1
+#: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
+#: cleaned and oriented by meshrec.mesh before indexing).
+_FORMAT = 2
 _KEY_NAME = "__cache_key__"
 _CHECKSUM_NAME = "__cache_checksum__"
 _RESERVED = (_KEY_NAME, _CHECKSUM_NAME)

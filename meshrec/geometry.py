@@ -201,9 +201,8 @@ def _check_curves(curves) -> list[np.ndarray]:
             )
         if not np.all(np.isfinite(a)):
             raise ValueError(f"curves[{i}] has non-finite values (NaN or inf)")
-        extent = np.linalg.norm(a.max(axis=0) - a.min(axis=0))
-        if extent == 0.0:
-            raise ValueError(f"curves[{i}] has all its points equal: it has no direction")
+        _check_magnitude(a, f"curves[{i}]")
+        _check_duplicates(a, f"curves[{i}]")
         ratio = _order_ratio(a)
         if ratio > defaults.MAX_STEP_TO_NEIGHBOUR_RATIO:
             raise ValueError(
@@ -213,6 +212,13 @@ def _check_curves(curves) -> list[np.ndarray]:
                 f"{defaults.MAX_STEP_TO_NEIGHBOUR_RATIO}"
             )
         out.append(a)
+    for i, j in itertools.combinations(range(len(out)), 2):
+        a, b = out[i], out[j]
+        if a.shape == b.shape and (np.array_equal(a, b) or np.array_equal(a, b[::-1])):
+            raise ValueError(
+                f"curves[{i}] and curves[{j}] are the same curve (duplicate points): three "
+                "different curves are needed"
+            )
     allp = np.concatenate(out)
     centred = allp - allp.mean(axis=0)
     sv = np.linalg.svd(centred, compute_uv=False)
@@ -221,6 +227,76 @@ def _check_curves(curves) -> list[np.ndarray]:
             "all points of the curves lie on one straight line: they define no surface"
         )
     return out
+
+
+def _check_magnitude(a: np.ndarray, name: str) -> None:
+    """Refuse a finite (n, 3) curve whose size float64 arithmetic cannot handle.
+
+    Raises
+    ------
+    ValueError
+        If a coordinate exceeds ``defaults.TOUCH_MAX_COORDINATE`` in magnitude, all points
+        are equal, or the curve's extent is below ``defaults.TOUCH_MIN_EXTENT`` or
+        ``defaults.TOUCH_MIN_RELATIVE_EXTENT`` times its largest coordinate.
+    """
+    biggest = float(np.max(np.abs(a)))
+    if biggest > defaults.TOUCH_MAX_COORDINATE:
+        raise ValueError(
+            f"{name} has a coordinate of magnitude {biggest:.3g}, more than "
+            f"defaults.TOUCH_MAX_COORDINATE = {defaults.TOUCH_MAX_COORDINATE:.3g}: "
+            "check the data's units"
+        )
+    extent = float(np.linalg.norm(a.max(axis=0) - a.min(axis=0)))
+    if extent == 0.0:
+        raise ValueError(f"{name} has all its points equal: it has no direction")
+    floor = max(defaults.TOUCH_MIN_EXTENT, defaults.TOUCH_MIN_RELATIVE_EXTENT * biggest)
+    if extent < floor:
+        raise ValueError(
+            f"{name} spans only {extent:.3g} (bounding-box diagonal), less than {floor:.3g} "
+            f"(defaults.TOUCH_MIN_EXTENT = {defaults.TOUCH_MIN_EXTENT:.3g}, or "
+            f"defaults.TOUCH_MIN_RELATIVE_EXTENT = {defaults.TOUCH_MIN_RELATIVE_EXTENT:.3g} "
+            f"times its largest coordinate {biggest:.3g}): too small to have a shape"
+        )
+
+
+def _check_duplicates(a: np.ndarray, name: str) -> None:
+    """Refuse duplicate points that make a curve unusable.
+
+    Repeats of a sample right after it (a probe resting at a point) are harmless and
+    allowed; a curve must still have ``defaults.MIN_POINTS_PER_CURVE`` distinct points, and
+    must not come back to an earlier sample after others (a copied or retraced run).
+
+    Parameters
+    ----------
+    a : (n, 3) float
+        One finite curve.
+    name : str
+        Its name in messages, e.g. ``"curves[1]"``.
+
+    Raises
+    ------
+    ValueError
+        If the curve has too few distinct points or revisits an earlier sample.
+    """
+    _, inverse = np.unique(a, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    distinct = int(inverse.max()) + 1
+    if distinct < defaults.MIN_POINTS_PER_CURVE:
+        raise ValueError(
+            f"{name} has only {distinct} distinct points among its {len(a)} (duplicate "
+            f"points), it must have at least {defaults.MIN_POINTS_PER_CURVE}"
+        )
+    starts = np.flatnonzero(np.concatenate([[True], np.any(a[1:] != a[:-1], axis=1)]))
+    ids = inverse[starts]
+    order = np.argsort(ids, kind="stable")
+    same = np.flatnonzero(ids[order][1:] == ids[order][:-1])
+    if len(same):
+        first, again = sorted((int(starts[order[same[0]]]), int(starts[order[same[0] + 1]])))
+        raise ValueError(
+            f"{name} has duplicate points: row {again} repeats row {first} "
+            f"{a[first].tolist()} with other points between, a curve must not come back to "
+            "a sample"
+        )
 
 
 def _check_vector(v, name: str, nonzero: bool = False) -> np.ndarray:
@@ -368,7 +444,10 @@ def find_common_point(curves) -> CommonPoint:
     ------
     ValueError
         If ``curves`` is not a sequence of enough (n, 3) finite arrays with enough points,
-        if a curve has all its points equal or does not look ordered along itself, or if
+        if a curve has all its points equal, coordinates beyond
+        ``defaults.TOUCH_MAX_COORDINATE`` or too small an extent, duplicate points (fewer
+        than ``defaults.MIN_POINTS_PER_CURVE`` distinct ones, or a return to an earlier
+        sample), or does not look ordered along itself, if two curves are the same, or if
         all points lie on one straight line.
     """
     cs = _check_curves(curves)
@@ -416,6 +495,74 @@ def find_common_point(curves) -> CommonPoint:
 # --------------------------------------------------------------------------------------------
 # local geometry
 # --------------------------------------------------------------------------------------------
+def _check_meet(
+    curves: list[np.ndarray],
+    fits: list[_CurveFit],
+    p: np.ndarray,
+    given: bool,
+    half_length: float,
+    fit_rms: float,
+) -> None:
+    """Refuse curves that do not pass through p.
+
+    The curves may miss p by at most ``defaults.MAX_MEET_FRACTION`` of their half-length
+    or ``defaults.MAX_MEET_NOISE_FACTOR`` times the fit residual, whichever is larger.
+    When p was found from the curves, the test is on how far apart the fitted curves pass
+    it; when it was given (a contact), on how far each curve is from it (the fitted curve's
+    passage, and the nearest sample less the curve's sample spacing).
+
+    Parameters
+    ----------
+    curves : list of (n_i, 3) float
+        The checked curves.
+    fits : list of _CurveFit
+        Their fits around p.
+    p : (3,) float
+        The common point.
+    given : bool
+        Whether p was given by the caller (a contact) rather than found.
+    half_length, fit_rms : float
+        As in :class:`LocalGeometry`.
+
+    Raises
+    ------
+    ValueError
+        If a curve misses p (``given``) or two curves pass p too far apart.
+    """
+    allowed = max(
+        defaults.MAX_MEET_FRACTION * half_length, defaults.MAX_MEET_NOISE_FACTOR * fit_rms
+    )
+    why = (
+        f"more than {allowed:.3g} (defaults.MAX_MEET_FRACTION = {defaults.MAX_MEET_FRACTION} "
+        f"of the curves' half-length {half_length:.3g}, or defaults.MAX_MEET_NOISE_FACTOR = "
+        f"{defaults.MAX_MEET_NOISE_FACTOR} times the fit residual {fit_rms:.3g})"
+    )
+    origins = np.array([f.origin for f in fits])
+    if given:
+        miss = []
+        for c, o in zip(curves, origins, strict=True):
+            nearest = float(np.min(np.linalg.norm(c - p, axis=1)))
+            step = float(np.median(np.linalg.norm(np.diff(c, axis=0), axis=1)))
+            miss.append(max(float(np.linalg.norm(o - p)), nearest - step))
+        i = int(np.argmax(miss))
+        if not miss[i] <= allowed:
+            raise ValueError(
+                f"the contact point {np.round(p, 6).tolist()} is {miss[i]:.3g} away from "
+                f"curves[{i}], {why}: it must be where the curves meet"
+            )
+        return
+    worst, wi, wj = -1.0, 0, 1
+    for i, j in itertools.combinations(range(len(origins)), 2):
+        d = float(np.linalg.norm(origins[i] - origins[j]))
+        if d > worst:
+            worst, wi, wj = d, i, j
+    if not worst <= allowed:
+        raise ValueError(
+            f"the curves do not meet at a common point: curves[{wi}] and curves[{wj}] pass "
+            f"{worst:.3g} apart where they come closest, {why}"
+        )
+
+
 def _canonical_sign(v: np.ndarray) -> np.ndarray:
     """v with its largest-magnitude component made positive."""
     return v if v[int(np.argmax(np.abs(v)))] >= 0 else -v
@@ -455,8 +602,14 @@ def estimate_local_geometry(
     ------
     ValueError
         If ``curves`` is not a sequence of enough (n, 3) finite arrays with enough points,
-        if a curve has all its points equal or does not look ordered along itself, or all
-        points lie on one straight line; if a curve's samples near p coincide; if
+        if a curve has all its points equal, coordinates beyond
+        ``defaults.TOUCH_MAX_COORDINATE`` or too small an extent, duplicate points (fewer
+        than ``defaults.MIN_POINTS_PER_CURVE`` distinct ones, or a return to an earlier
+        sample), or does not look ordered along itself, if two curves are the same, or all
+        points lie on one straight line; if a curve's samples near p coincide; if the
+        curves do not meet at one point or ``point`` is away from them (more than
+        ``defaults.MAX_MEET_FRACTION`` of the half-length or
+        ``defaults.MAX_MEET_NOISE_FACTOR`` times the fit residual); if
         ``point`` or ``normal`` is not a finite (3,) vector or ``normal`` is zero; if
         ``degree`` is not an integer >= 2; if two curves' tangents at p are within
         ``defaults.MIN_TANGENT_ANGLE_DEG`` of each other (modulo 180 degrees) or the Euler
@@ -471,6 +624,11 @@ def estimate_local_geometry(
     fits = [_fit_curve(c, p, degree, f"curves[{i}]") for i, c in enumerate(cs)]
     tangents = np.array([f.tangent for f in fits])
     kappas = np.array([f.curvature for f in fits])
+    sq = sum(f.sq_residual for f in fits)
+    dof = sum(f.dof for f in fits)
+    fit_rms = float(np.sqrt(sq / dof)) if dof > 0 else 0.0
+    half_length = float(np.median([f.half_length for f in fits]))
+    _check_meet(cs, fits, p, given=point is not None, half_length=half_length, fit_rms=fit_rms)
 
     # nearly parallel tangents
     worst = (np.inf, 0, 1)
@@ -515,11 +673,6 @@ def estimate_local_geometry(
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)
     frame = np.column_stack([t1, t2, n])
-
-    sq = sum(f.sq_residual for f in fits)
-    dof = sum(f.dof for f in fits)
-    fit_rms = float(np.sqrt(sq / dof)) if dof > 0 else 0.0
-    half_length = float(np.median([f.half_length for f in fits]))
 
     geom = LocalGeometry(
         point=np.asarray(p, dtype=np.float64).copy(),

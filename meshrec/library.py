@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .index import IndexParams, ModelIndex
-from .mesh import is_mesh_file
+from .mesh import MESH_SUFFIXES, is_mesh_file
 
 #: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed.
 ProgressCallback = Callable[[int, int, str], None]
@@ -30,7 +30,8 @@ class ModelLibrary:
     models : tuple of ModelIndex
         Sorted by name; names are unique.
     skipped : tuple of (Path, str)
-        Mesh files that could not be used, with the reason.
+        Files that could not be used (not a mesh, unreadable, a repeated name), with the
+        reason.
     """
 
     folder: Path | None
@@ -48,9 +49,11 @@ class ModelLibrary:
     ) -> ModelLibrary:
         """Index every mesh file directly inside ``folder`` (not recursive).
 
-        Files are taken in sorted order; those whose ending is not in
-        :data:`meshrec.mesh.MESH_SUFFIXES` are ignored. A mesh file that cannot be loaded,
-        or whose name (stem) repeats an earlier one, is skipped with a warning.
+        Files are taken in sorted order. A file whose ending is not in
+        :data:`meshrec.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
+        file that cannot be loaded, or one whose name (stem) repeats an earlier one, is
+        skipped with a warning; hidden files (``.name``) and sub-folders are ignored.
+        Nothing is ever written into ``folder`` (the cache lives in ``cache_dir``).
 
         Parameters
         ----------
@@ -72,23 +75,45 @@ class ModelLibrary:
         Raises
         ------
         ValueError
-            If ``folder`` does not exist or is not a directory, holds no mesh file, or
-            none of its mesh files can be loaded; or ``params`` is not an IndexParams.
+            If ``folder`` does not exist, is not a directory or cannot be listed, holds no
+            mesh file, or none of its mesh files can be loaded; or ``params`` is not an
+            IndexParams.
 
         Warns
         -----
         LibraryWarning
-            For every skipped file.
+            For every skipped file, and for every model none of whose vertices has a
+            usable curvature (it can never match a touch; it is kept); issued once the
+            models are indexed, and not at all when the ValueError is raised instead (its
+            message lists every file and why it failed).
         """
         root = Path(folder)
         if not root.exists():
             raise ValueError(f"model folder {str(root)!r} does not exist")
         if not root.is_dir():
             raise ValueError(f"model folder {str(root)!r} is not a directory")
-        files = sorted(p for p in root.iterdir() if p.is_file() and is_mesh_file(p))
+        try:
+            entries = sorted(p for p in root.iterdir() if p.is_file())
+        except OSError as exc:
+            raise ValueError(
+                f"model folder {str(root)!r} cannot be listed ({exc.strerror})"
+            ) from exc
+        files = [p for p in entries if is_mesh_file(p)]
+        others = [p for p in entries if not is_mesh_file(p) and not p.name.startswith(".")]
         if not files:
-            raise ValueError(f"model folder {str(root)!r} holds no mesh file (.stl, .obj, ...)")
-        return cls._build(root, files, params, cache_dir, force, progress, what=f"{root}")
+            raise ValueError(
+                f"model folder {str(root)!r} holds no mesh file "
+                f"({', '.join(MESH_SUFFIXES)})"
+                + (f"; it holds {', '.join(p.name for p in others[:5])}" if others else "")
+            )
+        skipped = []
+        for p in others:
+            ending = repr(p.suffix) if p.suffix else "none"
+            reason = f"not a mesh file (ending {ending}, expected {', '.join(MESH_SUFFIXES)})"
+            skipped.append((p, reason))
+        return cls._build(
+            root, files, params, cache_dir, force, progress, what=f"{root}", skipped=skipped
+        )
 
     @classmethod
     def from_files(
@@ -125,7 +150,10 @@ class ModelLibrary:
         Warns
         -----
         LibraryWarning
-            For every skipped file.
+            For every skipped file, and for every model none of whose vertices has a
+            usable curvature (it can never match a touch; it is kept); issued once the
+            models are indexed, and not at all when the ValueError is raised instead (its
+            message lists every file and why it failed).
         """
         if isinstance(paths, (str, bytes, os.PathLike)):
             raise ValueError(f"paths must be an iterable of paths, got a single path {paths!r}")
@@ -135,11 +163,14 @@ class ModelLibrary:
         return cls._build(None, files, params, cache_dir, force, progress, what="the given files")
 
     @classmethod
-    def _build(cls, folder, files, params, cache_dir, force, progress, what) -> ModelLibrary:
+    def _build(
+        cls, folder, files, params, cache_dir, force, progress, what, skipped=()
+    ) -> ModelLibrary:
         if params is not None and not isinstance(params, IndexParams):
             raise ValueError(f"params must be an IndexParams or None, got {params!r}")
         models: dict[str, ModelIndex] = {}
-        skipped: list[tuple[Path, str]] = []
+        skipped: list[tuple[Path, str]] = list(skipped)
+        unusable: list[str] = []
         n = len(files)
         for i, path in enumerate(files):
             if progress is not None:
@@ -151,18 +182,29 @@ class ModelLibrary:
                 )
             else:
                 try:
-                    models[path.stem] = ModelIndex.from_file(
+                    model = ModelIndex.from_file(
                         path, params=params, cache_dir=cache_dir, force=force
                     )
-                    continue
                 except ValueError as exc:
                     reason = str(exc)
+                else:
+                    models[path.stem] = model
+                    if not model.valid.any():
+                        unusable.append(
+                            f"model {path.stem!r} ({str(path)!r}): no vertex has a usable "
+                            f"curvature estimate ({len(model.faces)} faces: too coarse or "
+                            "degenerate), so no touch will ever match it"
+                        )
+                    continue
             skipped.append((path, reason))
-            warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=3)
-        if not models:
+        if not models:  # one error that says it all, rather than a warning per file
             raise ValueError(
                 f"no loadable mesh in {what}: " + "; ".join(f"{p.name}: {r}" for p, r in skipped)
             )
+        for path, reason in skipped:
+            warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=3)
+        for message in unusable:
+            warnings.warn(message, LibraryWarning, stacklevel=3)
         ordered = tuple(models[name] for name in sorted(models))
         return cls(folder=folder, models=ordered, skipped=tuple(skipped))
 

@@ -7,6 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from . import defaults
+
+#: Faces per chunk of the signed-volume sum (bounds its temporary memory).
+_CHUNK = 1 << 18
 
 #: File endings accepted as mesh files (compared case-insensitively).
 MESH_SUFFIXES: tuple[str, ...] = (".stl", ".obj", ".ply", ".off")
@@ -63,8 +70,14 @@ def check_mesh_path(path: str | os.PathLike) -> Path:
 def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Load a triangle mesh and clean it.
 
-    The file is read with trimesh (duplicate vertices merged); then degenerate faces,
-    duplicate faces (whatever their winding) and unreferenced vertices are dropped.
+    The file is read with trimesh (unprocessed), checked, and cleaned: vertices closer than
+    ``defaults.MESH_MERGE_FRACTION`` of the bounding-box diagonal are merged, degenerate
+    faces (repeated vertices or zero height), duplicate faces (whatever their winding) and
+    unreferenced vertices are dropped, and the winding is made consistent across every
+    edge shared by two faces (so that vertex normals do not cancel where an exporter
+    flipped some faces). A closed component (every edge shared by exactly two faces) is
+    turned outward if it was inside out; open components keep their orientation. Several
+    components, open boundaries and non-manifold edges are accepted.
 
     Parameters
     ----------
@@ -81,34 +94,271 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     ValueError
-        If ``path`` does not exist, is a directory, has an unsupported ending, cannot be
-        parsed, holds no triangles (e.g. a point cloud), or has non-finite coordinates.
+        If ``path`` does not exist, is a directory, has an unsupported ending, is empty or
+        unreadable, cannot be parsed (e.g. a truncated STL: the message says so), holds
+        no triangles (e.g. a point cloud) or only degenerate ones, has malformed arrays
+        (a vertex without three coordinates, a face index out of range), or has
+        non-finite coordinates in a face.
     """
     p = check_mesh_path(path)
+    where = f"mesh file {str(p)!r}"
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise ValueError(f"{where} cannot be read ({exc.strerror})") from exc
+    if size == 0:
+        raise ValueError(f"{where} is empty (0 bytes)")
     suffix = p.suffix.lower()
     try:
-        loaded = trimesh.load(str(p), file_type=suffix[1:], force="mesh", process=True)
+        loaded = trimesh.load(str(p), file_type=suffix[1:], process=False)
+        if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
+            clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
+            if clouds and len(clouds) == len(loaded.geometry):
+                loaded = clouds[0] if len(clouds) == 1 else trimesh.util.concatenate(clouds)
+            else:
+                loaded = loaded.to_mesh()
     except Exception as exc:  # trimesh raises many types on malformed input
+        why = _stl_problem(p) if suffix == ".stl" else None
+        detail = why if why is not None else f"{type(exc).__name__}: {exc}"
+        raise ValueError(f"{where} could not be read: {detail}") from exc
+    if isinstance(loaded, trimesh.PointCloud):
         raise ValueError(
-            f"mesh file {str(p)!r} could not be read: {type(exc).__name__}: {exc}"
-        ) from exc
-    if not isinstance(loaded, trimesh.Trimesh):
-        raise ValueError(
-            f"mesh file {str(p)!r} holds no triangle mesh (got {type(loaded).__name__})"
+            f"{where} holds no triangle mesh (got PointCloud): {len(loaded.vertices)} points "
+            "and no faces"
         )
-    mesh = loaded
-    if len(mesh.faces) == 0:
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise ValueError(f"{where} holds no triangle mesh (got {type(loaded).__name__})")
+    vertices = np.asarray(loaded.vertices)
+    faces = np.asarray(loaded.faces)
+    if len(faces) == 0:
+        why = _stl_problem(p) if suffix == ".stl" else None
+        if why is not None:
+            raise ValueError(f"{where} could not be read: {why}")
         raise ValueError(
-            f"mesh file {str(p)!r} holds no faces ({len(mesh.vertices)} vertices): "
+            f"{where} holds no faces ({len(vertices)} vertices): "
             "a point cloud, an empty file or unreadable content"
         )
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise ValueError(f"mesh file {str(p)!r} has non-finite vertex coordinates")
-    mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.update_faces(mesh.unique_faces())
-    mesh.remove_unreferenced_vertices()
-    if len(mesh.faces) == 0:
-        raise ValueError(f"mesh file {str(p)!r} holds only degenerate faces")
-    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise ValueError(f"{where}: vertices must be (n, 3), got {vertices.shape} (truncated?)")
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise ValueError(f"{where}: faces must be (m, 3) integers, got {faces.shape} {faces.dtype}")
+    out_of_range = faces[(faces < 0) | (faces >= len(vertices))]
+    if len(out_of_range):
+        raise ValueError(
+            f"{where}: a face refers to vertex {int(out_of_range[0])}, the file has vertices "
+            f"0..{len(vertices) - 1} (truncated?)"
+        )
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    del loaded  # with its caches: a million-face STL holds several hundred MB
+    if not np.isfinite(vertices).all():
+        vertices, faces = _compact(vertices, faces)  # unused non-finite vertices are harmless
+        if not np.isfinite(vertices).all():
+            raise ValueError(f"{where} has non-finite vertex coordinates (NaN or inf)")
+    vertices, faces = _clean(vertices, faces)
+    if len(faces) == 0:
+        raise ValueError(f"{where} holds only degenerate faces")
+    return np.ascontiguousarray(vertices), np.ascontiguousarray(faces)
+
+
+def _stl_problem(path: Path) -> str | None:
+    """Why an STL file that trimesh could not use is broken, if its layout tells.
+
+    Returns
+    -------
+    str or None
+        A description (a binary STL shorter than its header announces, an ASCII STL
+        without its closing ``endsolid``), or None if the layout looks complete.
+    """
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            head = fh.read(84)
+            fh.seek(max(size - 512, 0))
+            tail = fh.read()
+    except OSError:
+        return None
+    binary_size = 84 + 50 * int.from_bytes(head[80:84], "little") if len(head) == 84 else None
+    if binary_size == size:
+        return None
+    if head.lstrip()[:5].lower() == b"solid" and b"\x00" not in head[:80]:
+        if b"endsolid" not in tail.lower():
+            return "an ASCII STL without its closing 'endsolid' line (truncated?)"
+        return None
+    if binary_size is None:
+        return f"a binary STL needs an 84-byte header, the file has {size} bytes (truncated?)"
+    n = (binary_size - 84) // 50
+    if size < binary_size:
+        return (
+            f"a truncated binary STL: its header announces {n} triangles "
+            f"({binary_size} bytes), the file has {size} bytes"
+        )
+    return None
+
+
+def _merge_vertices(vertices: np.ndarray, faces: np.ndarray, diagonal: float):
+    """Merge vertices closer than ``defaults.MESH_MERGE_FRACTION * diagonal``.
+
+    Returns
+    -------
+    vertices : (k, 3) float64
+        The first occurrence of each merged group, in order of first occurrence.
+    faces : (m, 3) int64
+        Re-indexed.
+    """
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    tmp = vertices - centre
+    tmp /= diagonal * defaults.MESH_MERGE_FRACTION
+    q = np.rint(tmp, out=tmp).astype(np.int64)
+    del tmp
+    order = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))  # stable: first occurrence first
+    qs = q[order]
+    new = np.concatenate([[True], np.any(qs[1:] != qs[:-1], axis=1)])
+    group = np.cumsum(new) - 1
+    first = order[new]  # first occurrence of each group
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    inverse = np.empty(len(vertices), dtype=np.int64)
+    inverse[order] = rank[group]
+    return vertices[np.sort(first)], inverse[faces]
+
+
+def _first_of_rows(rows: np.ndarray) -> np.ndarray:
+    """Sorted indices of the first occurrence of every distinct row of an (m, 3) int array."""
+    order = np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))
+    rs = rows[order]
+    new = np.concatenate([[True], np.any(rs[1:] != rs[:-1], axis=1)])
+    return np.sort(order[new])
+
+
+def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop the vertices no face uses, re-indexing the faces (order kept)."""
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    if used.all():
+        return vertices, faces
+    index = np.cumsum(used) - 1
+    return vertices[used], index[faces]
+
+
+def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge, drop degenerate / duplicate faces and unused vertices, orient the faces.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Finite where referenced.
+    faces : (m, 3) int64
+        In range.
+
+    Returns
+    -------
+    vertices : (k, 3) float64
+    faces : (l, 3) int64
+        Possibly empty (every face degenerate).
+    """
+    vertices, faces = _compact(vertices, faces)
+    diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    if not diagonal > 0.0:
+        return vertices[:0], faces[:0]
+    vertices, faces = _merge_vertices(vertices, faces, diagonal)
+    # degenerate: a repeated vertex, or a height below the merge distance
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    double_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max([np.linalg.norm(u - v, axis=1) for u, v in ((b, a), (c, b), (a, c))], axis=0)
+    height_ok = double_area > defaults.MESH_MERGE_FRACTION * diagonal * longest
+    distinct = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2])
+    distinct &= faces[:, 0] != faces[:, 2]
+    faces = faces[distinct & height_ok]
+    # duplicates, whatever their winding: keep the first
+    if len(faces):
+        faces = faces[_first_of_rows(np.sort(faces, axis=1))]
+    vertices, faces = _compact(vertices, faces)
+    if len(faces):
+        faces = _orient(vertices, faces)
     return vertices, faces
+
+
+def _orient(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Make the winding consistent, and closed components face outward.
+
+    Two faces sharing an edge (an edge of exactly two faces) are consistent when they
+    traverse it in opposite directions. Faces are flipped so that every component agrees
+    with its first face (a breadth-first parity over the face graph); a component with
+    every edge shared by exactly two faces and a negative signed volume is then flipped
+    whole. Non-manifold and boundary edges constrain nothing.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+        Non-degenerate, without duplicates.
+
+    Returns
+    -------
+    (m, 3) int64
+        The faces, some with their winding reversed.
+    """
+    m, n = len(faces), len(vertices)
+    # half-edge h = 3 f + k runs from faces[f, k] to faces[f, (k + 1) % 3]
+    tail = faces.ravel()
+    head = faces[:, [1, 2, 0]].ravel()
+    key = np.minimum(tail, head) * n + np.maximum(tail, head)  # the undirected edge
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    del key
+    new = np.empty(len(ks), dtype=bool)
+    new[0] = True
+    np.not_equal(ks[1:], ks[:-1], out=new[1:])
+    del ks
+    starts = np.flatnonzero(new)
+    del new
+    counts = np.diff(np.append(starts, len(order)))
+    pair = starts[counts == 2]
+    ha, hb = order[pair], order[pair + 1]
+    fa, fb = ha // 3, hb // 3
+    clash = tail[ha] == tail[hb]  # the same direction: inconsistent
+    open_face = np.zeros(m, dtype=bool)
+    open_face[order[np.repeat(counts != 2, counts)] // 3] = True
+    del order, starts, counts, pair, ha, hb, tail, head
+
+    graph = sparse.coo_matrix((np.ones(len(fa)), (fa, fb)), shape=(m, m)).tocsr()
+    n_comp, labels = csgraph.connected_components(graph, directed=False)
+    if clash.any():
+        roots = np.unique(labels, return_index=True)[1]
+        rows = np.concatenate([fa, fb, np.full(n_comp, m)])
+        cols = np.concatenate([fb, fa, roots])
+        vals = np.concatenate([1 + clash, 1 + clash, np.ones(n_comp)]).astype(np.int8)
+        g = sparse.coo_matrix((vals, (rows, cols)), shape=(m + 1, m + 1)).tocsr()
+        bfs, pred = csgraph.breadth_first_order(g, m, directed=True, return_predecessors=True)
+        parent = pred.copy()
+        parent[m] = m
+        parity = np.zeros(m + 1, dtype=bool)
+        nodes = bfs[1:]
+        parity[nodes] = np.asarray(g[parent[nodes], nodes]).ravel() == 2
+        anc = parent
+        while np.any(anc != m):  # pointer jumping: parity to the root
+            parity = parity ^ np.where(anc != m, parity[anc], False)
+            anc = np.where(anc != m, anc[anc], m)
+        flip = parity[:m]
+        faces = faces.copy()
+        faces[flip] = faces[flip, ::-1]
+        clash = clash ^ (flip[fa] != flip[fb])  # edges still inconsistent (non-orientable)
+    # closed, consistently wound components: outward (positive signed volume)
+    bad = np.zeros(n_comp, dtype=bool)
+    bad[labels[open_face]] = True
+    bad[labels[fa[clash]]] = True
+    if not bad.all():
+        centre = vertices.mean(axis=0)
+        volume = np.zeros(n_comp)
+        for lo in range(0, m, _CHUNK):  # in chunks: a few arrays of (m, 3) otherwise
+            f = faces[lo : lo + _CHUNK]
+            a, b, c = (vertices[f[:, i]] - centre for i in range(3))
+            det = np.einsum("ij,ij->i", a, np.cross(b, c))
+            volume += np.bincount(labels[lo : lo + _CHUNK], weights=det, minlength=n_comp)
+        inside_out = ~bad & (volume < 0)
+        if inside_out.any():
+            faces = faces.copy()
+            turn = inside_out[labels]
+            faces[turn] = faces[turn, ::-1]
+    return faces

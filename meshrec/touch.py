@@ -189,8 +189,9 @@ class TouchData:
         Raises
         ------
         ValueError
-            If the file is missing, a directory, unreadable, of an unknown suffix, or its
-            content is malformed (the message names the file and the problem).
+            If the file is missing, a directory or another non-regular file (a pipe),
+            unreadable, binary, not UTF-8, of an unknown suffix, or its content is
+            malformed (the message names the file and the problem).
         """
         path = Path(path)
         suffix = path.suffix.lower()
@@ -211,17 +212,24 @@ class TouchData:
             numbers, a label is not an integer, or the curves fail validation.
         """
         text = _read_text(path)
-        rows = list(csv.reader(io.StringIO(text)))
-        rows = [r for r in rows if r and any(cell.strip() for cell in r)]
+        reader = csv.reader(io.StringIO(text, newline=None))  # any line endings
+        rows = []  # (line number in the file, cells), blank lines left out
+        try:
+            for cells in reader:
+                if cells and any(cell.strip() for cell in cells):
+                    rows.append((reader.line_num, cells))
+        except csv.Error as exc:
+            raise ValueError(f"touch file {path}: not readable as CSV ({exc})") from exc
         if not rows:
             raise ValueError(f"touch file {path}: empty, expected a header 'curve,x,y,z'")
-        header = tuple(cell.strip().lower() for cell in rows[0])
+        header = tuple(cell.strip().lower() for cell in rows[0][1])
         if header != _CSV_HEADER:
             raise ValueError(
-                f"touch file {path}: header must be 'curve,x,y,z', got {','.join(rows[0])!r}"
+                f"touch file {path}: header must be 'curve,x,y,z', "
+                f"got {','.join(rows[0][1])[:60]!r}"
             )
         groups: dict[int, list[list[float]]] = {}
-        for line_no, row in enumerate(rows[1:], start=2):
+        for line_no, row in rows[1:]:
             if len(row) != 4:
                 raise ValueError(
                     f"touch file {path}: line {line_no} must have 4 fields, got {len(row)}"
@@ -231,7 +239,7 @@ class TouchData:
                 xyz = [float(v) for v in row[1:]]
             except ValueError as exc:
                 raise ValueError(
-                    f"touch file {path}: line {line_no} is not numeric: {','.join(row)!r}"
+                    f"touch file {path}: line {line_no} is not numeric: {','.join(row)[:60]!r}"
                 ) from exc
             if not math.isfinite(label_f) or label_f != int(label_f):
                 raise ValueError(
@@ -240,7 +248,8 @@ class TouchData:
                 )
             if not all(math.isfinite(v) for v in xyz):
                 raise ValueError(
-                    f"touch file {path}: line {line_no} has a non-finite value: {','.join(row)!r}"
+                    f"touch file {path}: line {line_no} has a non-finite value: "
+                    f"{','.join(row)[:60]!r}"
                 )
             groups.setdefault(int(label_f), []).append(xyz)
         return cls._checked(path, [groups[k] for k in sorted(groups)], None, None)
@@ -252,14 +261,17 @@ class TouchData:
         Raises
         ------
         ValueError
-            If the file cannot be read or parsed, ``curves`` is missing, or the content
-            fails validation.
+            If the file cannot be read or parsed, ``curves`` is missing, a curve is not a
+            list of ``[x, y, z]`` lists of numbers, ``contact`` or ``normal`` is not three
+            numbers, or the content fails validation.
         """
         text = _read_text(path)
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ValueError(f"touch file {path}: not valid JSON ({exc})") from exc
+        except RecursionError as exc:
+            raise ValueError(f"touch file {path}: JSON nested too deeply") from exc
         if not isinstance(data, dict) or "curves" not in data:
             raise ValueError(f"touch file {path}: expected an object with a 'curves' list")
         unknown = set(data) - {"curves", "contact", "normal"}
@@ -267,6 +279,17 @@ class TouchData:
             raise ValueError(f"touch file {path}: unknown keys {sorted(unknown)}")
         if not isinstance(data["curves"], list):
             raise ValueError(f"touch file {path}: 'curves' must be a list of curves")
+        for i, curve in enumerate(data["curves"]):
+            if not isinstance(curve, list):
+                raise ValueError(
+                    f"touch file {path}: curves[{i}] must be a list of [x, y, z] points, "
+                    f"got {_json_type(curve)}"
+                )
+            for j, point in enumerate(curve):
+                _check_json_vector(path, point, f"curves[{i}][{j}]")
+        for key in ("contact", "normal"):
+            if data.get(key) is not None:
+                _check_json_vector(path, data[key], key)
         return cls._checked(path, data["curves"], data.get("contact"), data.get("normal"))
 
     @classmethod
@@ -314,6 +337,33 @@ class TouchData:
         _write_atomic(Path(path), json.dumps(data))
 
 
+def _json_type(value) -> str:
+    """The JSON name of a parsed value's type, for messages."""
+    names = {dict: "an object", list: "a list", str: "a string", bool: "a boolean"}
+    if value is None:
+        return "null"
+    return names.get(type(value), "a number")
+
+
+def _check_json_vector(path, value, name: str) -> None:
+    """Check that a parsed JSON value is a list of three numbers (not booleans or strings).
+
+    Raises
+    ------
+    ValueError
+        Naming the file, ``name`` and what was found instead.
+    """
+    if not isinstance(value, list):
+        raise ValueError(f"touch file {path}: {name} must be [x, y, z], got {_json_type(value)}")
+    if len(value) != 3:
+        raise ValueError(f"touch file {path}: {name} must have 3 numbers, got {len(value)}")
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(
+                f"touch file {path}: {name} must hold numbers, got {_json_type(v)} {v!r:.40}"
+            )
+
+
 def _read_text(path) -> str:
     """Read a UTF-8 text file, turning every failure into a ValueError naming the file."""
     path = Path(path)
@@ -321,6 +371,8 @@ def _read_text(path) -> str:
         raise ValueError(f"touch file {path}: no such file")
     if path.is_dir():
         raise ValueError(f"touch file {path}: is a directory, expected a file")
+    if not path.is_file():
+        raise ValueError(f"touch file {path}: not a regular file (a pipe or device?)")
     try:
         raw = path.read_bytes()
     except OSError as exc:

@@ -1,5 +1,7 @@
 """Tests for meshrec.library: folders of models and the bundled libraries."""
 
+import warnings
+
 import pytest
 import trimesh
 
@@ -16,7 +18,8 @@ def folder(tmp_path):
     trimesh.creation.box().subdivide().export(d / "Box.obj")
     cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=24)
     cyl.export(d / "can.ply")
-    (d / "README.txt").write_text("not a model")  # ignored: no mesh ending
+    (d / "README.txt").write_text("not a model")  # skipped with a warning: no mesh ending
+    (d / ".DS_Store").write_bytes(b"\x00\x01")  # hidden: ignored silently
     (d / "sub").mkdir()  # not recursive
     trimesh.creation.icosphere(subdivisions=1).export(d / "sub" / "hidden.stl")
     return d
@@ -27,7 +30,11 @@ def test_from_folder(folder, tmp_path, recwarn):
     lib = ModelLibrary.from_folder(
         folder, cache_dir=tmp_path / "cache", progress=lambda i, n, name: calls.append((i, n, name))
     )
-    assert len(recwarn) == 0
+    assert [str(w.message) for w in recwarn] == [
+        f"skipping {str(folder / 'README.txt')!r}: not a mesh file (ending '.txt', expected "
+        ".stl, .obj, .ply, .off)"
+    ]
+    assert recwarn[0].category is LibraryWarning
     assert lib.folder == folder
     assert lib.names == ("Box", "ball", "can")
     assert [m.name for m in lib] == list(lib.names)
@@ -36,7 +43,9 @@ def test_from_folder(folder, tmp_path, recwarn):
     assert isinstance(lib["can"], ModelIndex)
     assert "can" in lib
     assert "nope" not in lib
-    assert lib.skipped == ()
+    assert [(p.name, why.split(" (")[0]) for p, why in lib.skipped] == [
+        ("README.txt", "not a mesh file")
+    ]
     assert calls == [(0, 3, "Box"), (1, 3, "ball"), (2, 3, "can")]
     assert "ball" in repr(lib)
     with pytest.raises(KeyError, match="no model named 'nope'"):
@@ -45,6 +54,7 @@ def test_from_folder(folder, tmp_path, recwarn):
     again = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
     assert all(m.from_cache for m in again)
     assert sorted(p.name for p in folder.iterdir()) == [
+        ".DS_Store",
         "Box.obj",
         "README.txt",
         "ball.stl",
@@ -69,7 +79,7 @@ def test_bad_and_duplicate_files_are_skipped_with_warnings(folder, tmp_path):
     assert lib.names == ("Box", "ball", "can")
     assert lib["ball"].path.name == "ball.off"  # sorted: ball.off comes first
     skipped = {p.name: why for p, why in lib.skipped}
-    assert set(skipped) == {"broken.stl", "ball.stl"}
+    assert set(skipped) == {"README.txt", "broken.stl", "ball.stl"}
     assert "could not be read" in skipped["broken.stl"] or "no faces" in skipped["broken.stl"]
 
 
@@ -92,11 +102,10 @@ def test_from_files_errors(folder, tmp_path):
         ModelLibrary.from_files([], cache_dir=tmp_path / "cache")
     with pytest.raises(ValueError, match="paths must be an iterable of paths, got a single path"):
         ModelLibrary.from_files(str(folder / "ball.stl"), cache_dir=tmp_path / "cache")
-    with (
-        pytest.warns(LibraryWarning),
-        pytest.raises(ValueError, match=r"no loadable mesh in the given files: nope\.stl"),
-    ):
-        ModelLibrary.from_files([folder / "nope.stl"], cache_dir=tmp_path / "cache")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"no loadable mesh in the given files: nope\.stl"):
+            ModelLibrary.from_files([folder / "nope.stl"], cache_dir=tmp_path / "cache")
     with pytest.raises(ValueError, match="params must be an IndexParams or None, got 3"):
         ModelLibrary.from_files([folder / "ball.stl"], params=3, cache_dir=tmp_path / "cache")
 
@@ -122,11 +131,11 @@ def test_folder_with_no_loadable_mesh(tmp_path):
     d.mkdir()
     (d / "a.stl").write_bytes(b"")
     (d / "b.ply").write_text("nope")
-    with (
-        pytest.warns(LibraryWarning, match="skipping"),
-        pytest.raises(ValueError, match=r"no loadable mesh in .*junk: a\.stl: .*; b\.ply: "),
-    ):
-        ModelLibrary.from_folder(d, cache_dir=tmp_path / "cache")
+    # one error naming every file and its problem, and no warning per file before it
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"no loadable mesh in .*junk: a\.stl: .*; b\.ply: "):
+            ModelLibrary.from_folder(d, cache_dir=tmp_path / "cache")
 
 
 def test_bundled_models_dir_prefers_the_installed_copy(tmp_path, monkeypatch):

@@ -113,7 +113,7 @@ def test_error_unsupported_suffix(tmp_path, sphere):
 def test_error_garbage_content(tmp_path, name, content):
     path = tmp_path / name
     path.write_bytes(content)
-    pattern = rf"{name.replace('.', '[.]')}.*(could not be read|no faces)"
+    pattern = rf"{name.replace('.', '[.]')}.*(could not be read|no faces|is empty)"
     with pytest.raises(ValueError, match=pattern):
         load_mesh(path)
 

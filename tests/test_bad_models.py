@@ -1,0 +1,378 @@
+"""Bad and awkward models: broken files get a clear error (and are skipped with a warning
+inside a library), while real-world meshes with defects index and recognise correctly.
+
+The "works" cases check the curvature table against the known sphere curvature, so a
+defect that poisoned the table (flipped faces, libigl failures) would show.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from test_bad_touch import assert_one_line_error, run_cli
+
+from meshrec import ModelIndex, ModelLibrary, recognize, simulate_touch
+from meshrec.library import LibraryWarning
+
+
+# ----------------------------------------------------------------------------- makers
+def _sphere(subdivisions=3, radius=1.0) -> trimesh.Trimesh:
+    return trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+
+
+def _export(mesh: trimesh.Trimesh, path: Path) -> Path:
+    mesh.export(path)
+    return path
+
+
+def _truncated_binary_stl(path: Path) -> Path:
+    data = _sphere(2).export(file_type="stl")  # 320 faces: 84 + 50 * 320 = 16084 bytes
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def _truncated_ascii_stl(path: Path) -> Path:
+    text = trimesh.exchange.stl.export_stl_ascii(_sphere(1))
+    path.write_text(text[: len(text) // 2])
+    return path
+
+
+def _obj_cut_in_a_vertex(path: Path) -> Path:
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 0.5 0.5")
+    return path
+
+
+def _obj_bad_index(path: Path) -> Path:
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n")
+    return path
+
+
+def _obj_nan_vertex(path: Path) -> Path:
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 nan 0\nv 1 1 1\nf 1 2 3\nf 1 2 4\n")
+    return path
+
+
+def _truncated_ply(path: Path) -> Path:
+    data = _sphere(2).export(file_type="ply")
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def _point_cloud(path: Path) -> Path:
+    trimesh.PointCloud(np.random.default_rng(0).random((50, 3))).export(path)
+    return path
+
+
+def _garbage(path: Path) -> Path:
+    path.write_bytes(bytes(range(256)) * 8)
+    return path
+
+
+def _empty(path: Path) -> Path:
+    path.write_bytes(b"")
+    return path
+
+
+def _degenerate_only(path: Path) -> Path:
+    path.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n")
+    return path
+
+
+def _unreadable(path: Path) -> Path:
+    if os.geteuid() != 0:
+        _sphere(1).export(path)
+        path.chmod(0)
+    else:  # root reads any file whatever its mode: a file whose read fails instead
+        path.symlink_to("/proc/self/mem")
+    return path
+
+
+#: name -> (file name, maker, message pattern)
+BROKEN = {
+    "truncated_binary_stl": (
+        "half.stl",
+        _truncated_binary_stl,
+        r"half\.stl' could not be read: a truncated binary STL: its header announces 320 "
+        r"triangles \(16084 bytes\), the file has 8042 bytes",
+    ),
+    "truncated_ascii_stl": (
+        "cut.stl",
+        _truncated_ascii_stl,
+        r"cut\.stl' could not be read: an ASCII STL without its closing 'endsolid' line",
+    ),
+    "obj_cut_in_a_vertex": (
+        "cut.obj",
+        _obj_cut_in_a_vertex,
+        r"cut\.obj': vertices must be \(n, 3\), got \(3, 2\) \(truncated\?\)",
+    ),
+    "obj_face_index_out_of_range": (
+        "index.obj",
+        _obj_bad_index,
+        r"index\.obj' (could not be read: IndexError|: a face refers to vertex 8)",
+    ),
+    "obj_nan_vertex": ("nan.obj", _obj_nan_vertex, r"nan\.obj' has non-finite vertex"),
+    "truncated_ply": ("half.ply", _truncated_ply, r"half\.ply' could not be read"),
+    "point_cloud": (
+        "cloud.ply",
+        _point_cloud,
+        r"cloud\.ply' holds no triangle mesh \(got PointCloud\): 50 points and no faces",
+    ),
+    "garbage_stl": ("junk.stl", _garbage, r"junk\.stl' could not be read"),
+    "garbage_obj": ("junk.obj", _garbage, r"junk\.obj' (could not be read|holds no faces)"),
+    "empty_off": ("empty.off", _empty, r"empty\.off' is empty \(0 bytes\)"),
+    "degenerate_only": ("flat.obj", _degenerate_only, r"flat\.obj' holds only degenerate faces"),
+    "unreadable": ("locked.stl", _unreadable, r"cannot read file '[^']*locked\.stl': "),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_broken_mesh_file_raises_naming_the_file_and_problem(tmp_path, name):
+    file_name, make, pattern = BROKEN[name]
+    path = make(tmp_path / file_name)
+    with pytest.raises(ValueError, match=pattern) as info:
+        ModelIndex.from_file(path, cache_dir=tmp_path / "cache")
+    assert info.type is ValueError
+    assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
+
+
+def test_broken_files_are_skipped_with_a_warning_in_a_library(tmp_path):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    _export(_sphere(), folder / "ball.stl")
+    for name in ("truncated_binary_stl", "point_cloud", "obj_cut_in_a_vertex"):
+        file_name, make, _ = BROKEN[name]
+        make(folder / file_name)
+    (folder / "notes.txt").write_text("not a mesh")
+    (folder / "part.step").write_text("ISO-10303-21;")
+    with pytest.warns(LibraryWarning) as record:
+        lib = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    assert lib.names == ("ball",)
+    skipped = {p.name: why for p, why in lib.skipped}
+    assert set(skipped) == {"half.stl", "cloud.ply", "cut.obj", "notes.txt", "part.step"}
+    assert "truncated binary STL" in skipped["half.stl"]
+    assert "no faces" in skipped["cloud.ply"]
+    assert skipped["part.step"].startswith("not a mesh file (ending '.step'")
+    assert len(record) == 5
+    assert all(str(w.message).startswith("skipping ") for w in record)
+
+
+def test_empty_folder_and_folder_without_meshes(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    pattern = r"empty' holds no mesh file \(\.stl, \.obj, \.ply, \.off\)$"
+    with pytest.raises(ValueError, match=pattern):
+        ModelLibrary.from_folder(empty, cache_dir=tmp_path / "cache")
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    (docs / "notes.txt").write_text("x")
+    with pytest.raises(ValueError, match=r"docs' holds no mesh file .*; it holds notes\.txt"):
+        ModelLibrary.from_folder(docs, cache_dir=tmp_path / "cache")
+
+
+# ----------------------------------------------------------------------------- CLI
+#: The broken models also run through ``meshrec index`` (the interpreter start is slow).
+CLI_BROKEN = ["truncated_binary_stl", "obj_cut_in_a_vertex", "point_cloud", "unreadable"]
+
+
+@pytest.fixture(scope="module")
+def cli_runs(tmp_path_factory):
+    """``meshrec index`` on folders of bad models, all started together."""
+    root = tmp_path_factory.mktemp("bad_models")
+    env = {**os.environ, "MESHREC_CACHE_DIR": str(root / "cache")}
+    folders = {}
+    for name in ("empty", "mixed", *CLI_BROKEN):
+        folders[name] = root / name
+        folders[name].mkdir()
+    _export(_sphere(), folders["mixed"] / "ball.stl")
+    _truncated_binary_stl(folders["mixed"] / "half.stl")
+    (folders["mixed"] / "notes.txt").write_text("x")
+    for name in CLI_BROKEN:
+        file_name, make, _ = BROKEN[name]
+        make(folders[name] / file_name)
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        futures = {
+            name: pool.submit(run_cli, ["index", "--models", str(folder)], env, root)
+            for name, folder in folders.items()
+        }
+        return {name: f.result() for name, f in futures.items()}
+
+
+
+
+
+def assert_index_error(proc, pattern: str) -> None:
+    """Exit status 2, no traceback, one error line; ``index`` also reports its progress."""
+    progress = [ln for ln in proc.stderr.splitlines() if ln.startswith("indexing ")]
+    assert all(re.fullmatch(r"indexing \d+/\d+: \S+", ln) for ln in progress)
+    errors = "".join(ln + "\n" for ln in proc.stderr.splitlines() if ln not in progress)
+    rest = subprocess.CompletedProcess(proc.args, proc.returncode, proc.stdout, errors)
+    assert_one_line_error(rest, pattern)
+
+
+@pytest.mark.parametrize("name", CLI_BROKEN)
+def test_cli_index_of_a_broken_model_exits_2_with_one_line(cli_runs, name):
+    assert_index_error(cli_runs[name], "no loadable mesh in .*" + BROKEN[name][2])
+
+
+def test_cli_index_of_an_empty_folder(cli_runs):
+    assert_one_line_error(cli_runs["empty"], r"empty' holds no mesh file")
+
+
+def test_cli_index_skips_bad_files_with_warnings(cli_runs):
+    proc = cli_runs["mixed"]
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    warned = [ln for ln in proc.stderr.splitlines() if ln.startswith("meshrec: warning: ")]
+    assert len(warned) == 2
+    assert any("half.stl" in w and "truncated binary STL" in w for w in warned)
+    assert any("notes.txt" in w and "not a mesh file" in w for w in warned)
+    assert [ln.split()[0] for ln in proc.stdout.splitlines()] == ["ball"]
+
+
+# ----------------------------------------------------------------------------- meshes that work
+def _index(tmp_path, mesh_or_text, name, suffix=".ply") -> ModelIndex:
+    path = tmp_path / f"{name}{suffix}"
+    if isinstance(mesh_or_text, str):
+        path.write_text(mesh_or_text)
+    else:
+        mesh_or_text.export(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # none of these is worth a warning
+        return ModelIndex.from_file(path, cache_dir=tmp_path / "cache")
+
+
+def _radius_1_curvature_ok(idx: ModelIndex, mask=None, rtol=0.03) -> None:
+    """On a unit sphere with outward normals, H = 1 and K = 1."""
+    mask = np.ones(len(idx.vertices), bool) if mask is None else mask
+    assert idx.valid[mask].all()
+    assert np.allclose(idx.H[mask], 1.0, rtol=rtol)
+    assert np.allclose(idx.K[mask], 1.0, rtol=2 * rtol)
+
+
+def test_degenerate_duplicate_faces_and_unreferenced_vertices(tmp_path):
+    clean = _sphere()
+    V = np.vstack([clean.vertices, [[5.0, 5.0, 5.0], [6.0, 6.0, 6.0]]])  # unreferenced
+    F = np.vstack(
+        [
+            clean.faces,
+            clean.faces[:40],  # exact duplicates
+            clean.faces[40:80, ::-1],  # duplicates with the other winding
+            [[0, 0, 1], [2, 3, 3]],  # repeated vertex
+        ]
+    )
+    mid = 0.5 * (V[clean.faces[0, 0]] + V[clean.faces[0, 1]])
+    V = np.vstack([V, mid])  # a zero-area face on an edge
+    F = np.vstack([F, [[clean.faces[0, 0], len(V) - 1, clean.faces[0, 1]]]])
+    dirty = trimesh.Trimesh(V, F, process=False)
+    idx = _index(tmp_path, dirty, "dirty")
+    ref = _index(tmp_path, clean, "clean")
+    assert len(idx.vertices) == len(clean.vertices)
+    assert len(idx.faces) == len(clean.faces)
+    assert idx.closed
+    np.testing.assert_allclose(np.sort(idx.H), np.sort(ref.H), rtol=1e-9)
+    _radius_1_curvature_ok(idx)
+
+
+def test_several_components(tmp_path):
+    small = _sphere(radius=0.5)
+    small.apply_translation([3.0, 0.0, 0.0])
+    idx = _index(tmp_path, trimesh.util.concatenate([_sphere(), small]), "two")
+    big = idx.vertices[:, 0] < 1.5
+    assert idx.closed
+    _radius_1_curvature_ok(idx, big)
+    # radius 0.5; measured 2.070-2.079: the curvature ball (a fraction of the whole model's
+    # size) spans twice the angle on the small sphere, and the quadric fit is biased by it
+    assert np.allclose(idx.H[~big], 2.0, rtol=0.05)
+
+
+def test_open_boundary(tmp_path):
+    sphere = _sphere(4)
+    keep = sphere.triangles_center[:, 2] > 0.0
+    cap = trimesh.Trimesh(sphere.vertices, sphere.faces[keep])
+    idx = _index(tmp_path, cap, "cap")
+    assert not idx.closed
+    inner = idx.vertices[:, 2] > 0.3  # away from the rim, where the ball is one-sided
+    _radius_1_curvature_ok(idx, inner)
+    assert np.isfinite(idx._kdtree.data).all()
+
+
+def test_non_manifold_edge(tmp_path):
+    sphere = _sphere()
+    n = len(sphere.vertices)
+    fin_v = [[2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [2.0, 0.0, 1.0], [2.0, -1.0, 0.5], [3.0, 0.5, 0.0]]
+    fin_f = [[n, n + 1, n + 2], [n, n + 1, n + 3], [n + 1, n, n + 4]]  # edge (n, n+1) x3
+    mesh = trimesh.Trimesh(np.vstack([sphere.vertices, fin_v]), np.vstack([sphere.faces, fin_f]))
+    idx = _index(tmp_path, mesh, "fin")
+    on_sphere = np.linalg.norm(idx.vertices, axis=1) < 1.5
+    assert on_sphere.sum() == n
+    _radius_1_curvature_ok(idx, on_sphere)
+    assert not idx.closed
+    table = idx.lookup(0.0, 0.0, np.inf, np.inf)
+    assert np.isfinite(idx.K[table]).all()
+
+
+def test_inside_out_closed_mesh_is_turned_outward(tmp_path):
+    sphere = _sphere()
+    sphere.invert()
+    assert sphere.volume < 0
+    idx = _index(tmp_path, sphere, "inside_out", suffix=".stl")
+    outward = np.einsum("ij,ij->i", idx.vertex_normals, idx.vertices)
+    assert (outward > 0.99).all()
+    _radius_1_curvature_ok(idx)
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_randomly_flipped_faces_are_made_consistent(tmp_path, closed):
+    sphere = _sphere(4)
+    faces = sphere.faces if closed else sphere.faces[sphere.triangles_center[:, 2] > -0.2]
+    flip = np.random.default_rng(1).random(len(faces)) < 0.3
+    faces = faces.copy()
+    faces[flip] = faces[flip, ::-1]
+    mesh = trimesh.Trimesh(sphere.vertices, faces, process=False)
+    assert not mesh.is_winding_consistent
+    idx = _index(tmp_path, mesh, f"flipped_{closed}")
+    inner = idx.vertices[:, 2] > 0.1 if not closed else np.ones(len(idx.vertices), bool)
+    sign = 1.0 if closed else np.sign(np.median(idx.H[inner]))  # an open one keeps a side
+    assert np.allclose(sign * idx.H[inner], 1.0, rtol=0.03)
+    assert trimesh.Trimesh(idx.vertices, idx.faces, process=False).is_winding_consistent
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e12])
+def test_any_unit_size(tmp_path, scale):
+    # an absolute merge tolerance merges a tiny model away, and overflows on a huge one
+    sphere = _sphere()
+    sphere.apply_scale(scale)
+    idx = _index(tmp_path, sphere, "scaled")
+    assert len(idx.vertices) == len(sphere.vertices)
+    assert np.allclose(idx.H, 1.0 / scale, rtol=0.03)
+
+
+def test_libigl_failures_do_not_poison_the_table(tmp_path):
+    # a model too coarse for any curvature, and a sphere with a loose triangle
+    folder = tmp_path / "models"
+    folder.mkdir()
+    tetrahedron = trimesh.Trimesh(
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+    )
+    _export(tetrahedron, folder / "tet.stl")  # 3 neighbours per vertex: libigl fails on all
+    island = trimesh.Trimesh([[10, 0, 0], [11, 0, 0], [10, 1, 0]], [[0, 1, 2]])
+    _export(trimesh.util.concatenate([_sphere(), island]), folder / "ball.ply")
+    with pytest.warns(LibraryWarning, match=r"'tet'.*no vertex has a usable curvature"):
+        lib = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    assert not lib["tet"].valid.any()
+    ball = lib["ball"]
+    assert (~ball.valid).sum() == 3
+    assert np.isfinite(ball._kdtree.data).all()
+    rec = recognize(simulate_touch(_sphere(), rng=2).touch, lib)
+    assert rec.best.model == "ball"
+    tet = next(r for r in rec.ranking if r.model == "tet")
+    assert tet.rejected
+    assert "within the lookup tolerance" in tet.reason
