@@ -23,7 +23,7 @@ from .library import ModelLibrary, bundled_models_dir
 from .mesh import load_mesh
 from .paper import PAPER_SURFACES, localisation_error, symmetry_rotations
 from .recognize import Recognition, recognize
-from .register import Registration, StageTimes, register
+from .register import Registration, StageTimes, refine_pose, register
 from .simulate import SimulatedTouch, simulate_touch
 from .touch import TouchData
 
@@ -47,6 +47,7 @@ __all__ = [
     "load_mesh",
     "localisation_error",
     "recognize",
+    "refine_pose",
     "register",
     "simulate_touch",
     "symmetry_rotations",

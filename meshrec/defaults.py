@@ -77,6 +77,22 @@ PHI_XTOL = 2e-3
 # --- local search on surface charts (Section 2.2.1) and final refinement --------------------
 #: Candidates (best by their phi error) that get a full local search.
 LOCAL_SEARCHES = 8
+#: Data points (evenly subsampled) used by the chart search; the refinement uses all.
+SEARCH_POINTS = 64
+#: The local searches stop after this many in a row that did not improve the best error
+#: by at least SEARCH_IMPROVEMENT (a fraction): later candidates rank worse after the
+#: screening and mostly find the same minima again.
+SEARCH_PATIENCE = 3
+SEARCH_IMPROVEMENT = 0.01
+#: ... but only once the best mean distance is within this factor of the noise RMS that
+#: the curve fits estimate (a right superposition leaves 0.80 to 0.87 of it: Gaussian to
+#: uniform noise; a near miss on the crossed trough, seed 4, left 1.07), or is more than
+#: RIVAL_RATIO times a rival model's error (it cannot win the recognition).
+SEARCH_GOOD_FIT = 1.0
+RIVAL_RATIO = 2.0
+#: The local-search results (best by their subsample error) given the final rigid
+#: refinement on all the points.
+REFINE_BEST = 3
 #: Candidates whose best sampled phi error exceeds this factor times the best candidate's
 #: are not searched (the paper's example: right-basin starts within a factor of 2).
 SEARCH_PRUNE_RATIO = 3.0
@@ -85,6 +101,9 @@ SEARCH_PRUNE_RATIO = 3.0
 SCREEN_CANDIDATES = 48
 #: Rigid-refinement iterations of the screening.
 SCREEN_ITERATIONS = 3
+#: Step of the chart's one-sided difference in (u, v) for the local search's Jacobian, as
+#: a fraction of the curves' half-length.
+CHART_FD_STEP = 1e-3
 #: Chart re-centrings at most per local search.
 MAX_RECENTRES = 6
 #: A re-centring smaller than this fraction of the half-length ends the local search.
@@ -114,6 +133,66 @@ CURVATURE_SCALE_FRACTION = 0.02
 CURVATURE_MIN_RADIUS = 2
 #: Largest curvature ball radius, in mean edge lengths (the cost grows with its square).
 CURVATURE_MAX_RADIUS = 8
+#: Adjacent vertex normals further apart than this (degrees) mark a crease: no smooth
+#: surface is implied across that edge, and the distance there is to the flat faces.
+SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0
 #: The lookup scales the K axis by 1 / (2 median |H|); below this fraction of 1 / scale
 #: the median |H| counts as zero (a flat model) and 1 / scale is used instead.
 LOOKUP_MIN_H_FRACTION = 1e-6
+
+# --- the Open3D baseline of the benchmarks (meshrec.baseline) -------------------------------
+#: Points sampled on each model's mesh for the baseline's target cloud.
+BASELINE_MODEL_POINTS = 20000
+#: Radius of the touch points' normal estimate, fraction of the touch data's extent.
+BASELINE_NORMAL_RADIUS = 0.1
+#: Radius of the FPFH features, fraction of the touch data's extent.
+BASELINE_FPFH_RADIUS = 0.25
+#: RANSAC's inlier distance, fraction of the touch data's extent.
+BASELINE_RANSAC_DISTANCE = 0.05
+#: RANSAC iterations at most (Open3D's default is 100,000).
+BASELINE_RANSAC_ITERATIONS = 100000
+#: ICP's correspondence distance, fraction of the touch data's extent.
+BASELINE_ICP_DISTANCE = 0.1
+#: ICP iterations at most (Open3D's default).
+BASELINE_ICP_ITERATIONS = 30
+#: Random starts of the multi-start ICP (as measured in the developers' brief: 256).
+BASELINE_STARTS = 256
+#: The best ICP results (by fitness, then RMS) rescored on the mesh.
+BASELINE_RESCORED = 8
+
+# --- benchmark protocols (meshrec.bench) -----------------------------------------------------
+#: Points per curve and probe noise (mm) of the paper's experiment on its objects (Sec. 4).
+BENCH_OBJECT_POINTS = 41
+BENCH_OBJECT_NOISE = 0.1
+#: Benchmark contacts on the objects' curved sides stay this far from the rims, mm.
+BENCH_RIM_MARGIN = 30.0
+
+# --- input checks: touch data, model meshes, units (hardening) -----------------------------
+#: The curves must meet at one point: their fitted passages there may be at most this
+#: fraction of the curves' half-length apart (and a given contact at most this far from
+#: each curve) ... Measured on simulated touches (15 seeds per paper surface, noise up to
+#: 0.03; 120 seeds per bundled object, noise 0.1 mm): passages at most 6.8% of the
+#: half-length apart (curves across a cylinder's rim), 0.2% on the surfaces at noise 0.001.
+MAX_MEET_FRACTION = 0.1
+#: ... or this many times the curve fit's rms residual (the noise), if that is larger.
+#: With both, the measured passages stay within half the allowance.
+MAX_MEET_NOISE_FACTOR = 10.0
+#: Largest coordinate magnitude of touch data (beyond it the fits' squares lose all
+#: precision; no probe measures that far in any unit).
+TOUCH_MAX_COORDINATE = 1e12
+#: Smallest extent (bounding-box diagonal) of a curve, as a fraction of its largest
+#: coordinate magnitude (below it, float64 cannot resolve the curve's shape) ...
+TOUCH_MIN_RELATIVE_EXTENT = 1e-9
+#: ... and in absolute terms, data units (a nanometre in metres; squares of smaller
+#: lengths underflow).
+TOUCH_MIN_EXTENT = 1e-9
+#: A touch whose extent (bounding-box diagonal of all its points) is more than this many
+#: times larger, or smaller, than sqrt(surface area) of every model is refused as a likely
+#: unit mismatch. Simulated touches measure about 0.3 sqrt(area); millimetres against
+#: metres make it 300 or 0.0003.
+UNIT_MISMATCH_RATIO = 100.0
+#: Mesh vertices closer than this fraction of the mesh's bounding-box diagonal are merged
+#: (STL stores every face's corners separately; like trimesh's absolute 1e-8 on a unit
+#: model); relative, so that meshes in any unit merge alike (an absolute tolerance
+#: overflows on coordinates of 1e11 or merges tiny models away).
+MESH_MERGE_FRACTION = 1e-8

@@ -323,6 +323,7 @@ class ModelIndex:
     _kdtree: cKDTree = field(init=False, repr=False)
     _aabb: igl.AABB = field(init=False, repr=False)
     face_normals: np.ndarray = field(init=False, repr=False)
+    _edge_bulge: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         def put(name, value):
@@ -385,6 +386,7 @@ class ModelIndex:
         face_normals = igl.per_face_normals(V, F, np.zeros(3))
         face_normals.setflags(write=False)
         put("face_normals", face_normals)
+        put("_edge_bulge", _edge_bulges(V, F, self.vertex_normals))
 
     def __reduce__(self):
         # The AABB tree cannot be pickled: pickle the fields and rebuild the trees.
@@ -546,6 +548,101 @@ class ModelIndex:
         sqr, face, closest = self._aabb.squared_distance(self.vertices, self.faces, P)
         return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
 
+    def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Height of the smooth surface implied by the vertex normals above the flat faces.
+
+        The flat triangles of a mesh of a curved surface lie inside or outside it by up to
+        a sagitta; the distance to the flat faces therefore ripples with the faces, and
+        those ripples make spurious local minima of the registration error. A quadratic
+        patch per face (see ``_edge_bulges``), continuous across edges, removes most of
+        the deviation: the signed distance to the smooth surface is the signed distance
+        to the face minus this height.
+
+        Parameters
+        ----------
+        closest : (n, 3) float
+            Points on the faces, e.g. from :meth:`closest_points`.
+        face : (n,) int
+            The face of each point.
+
+        Returns
+        -------
+        (n,) float64
+            Heights along the face normals, model units.
+        """
+        return self.smooth_offsets_and_gradients(closest, face)[0]
+
+    def smooth_offsets_and_gradients(
+        self, closest: np.ndarray, face: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`smooth_offsets` and their gradients along the faces.
+
+        Parameters
+        ----------
+        closest : (n, 3) float
+            Points on the faces.
+        face : (n,) int
+            The face of each point.
+
+        Returns
+        -------
+        heights : (n,) float64
+            As :meth:`smooth_offsets`.
+        gradients : (n, 3) float64
+            Gradient of the height as the point moves in its face's plane.
+        """
+        f = np.asarray(face, dtype=np.int64)
+        w = self._barycentric(np.asarray(closest, dtype=np.float64), f)
+        d = self._edge_bulge[f]
+        w0, w1, w2 = w.T
+        d0, d1, d2 = d.T
+        heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
+        # dh/dw_i chained with the barycentric gradients in the face plane.
+        dh = np.column_stack([d0 * w1 + d2 * w2, d0 * w0 + d1 * w2, d1 * w1 + d2 * w0])
+        gradients = np.einsum("ni,nij->nj", dh, self._face_table()["grads"][f])
+        return heights, gradients
+
+    def _face_table(self) -> dict:
+        """Per-face constants of the barycentric coordinates, computed on first use.
+
+        (Not at load time: the cached load stays fast, and only registrations need them.)
+        """
+        table = self.__dict__.get("_faces_cache")
+        if table is None:
+            V, F = self.vertices, self.faces
+            a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+            v0, v1 = b - a, c - a
+            d00 = np.einsum("ij,ij->i", v0, v0)
+            d01 = np.einsum("ij,ij->i", v0, v1)
+            d11 = np.einsum("ij,ij->i", v1, v1)
+            den = d00 * d11 - d01 * d01
+            ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
+            # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex
+            # i, counter-clockwise (zero on degenerate faces).
+            n = _cross(v0, v1)
+            nn = np.einsum("ij,ij->i", n, n)
+            inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
+            grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
+            grads *= inv[:, :, None]
+            table = {"a": a, "v0": v0, "v1": v1, "d00": d00, "d01": d01, "d11": d11,
+                     "den": np.where(ok, den, np.inf), "ok": ok, "grads": grads}
+            self.__dict__["_faces_cache"] = table
+        return table
+
+    def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them."""
+        t = self._face_table()
+        v2 = p - t["a"][f]
+        d20 = np.einsum("ij,ij->i", v2, t["v0"][f])
+        d21 = np.einsum("ij,ij->i", v2, t["v1"][f])
+        d00, d01, d11, den = t["d00"][f], t["d01"][f], t["d11"][f], t["den"][f]
+        v = (d11 * d20 - d01 * d21) / den
+        u = (d00 * d21 - d01 * d20) / den
+        w = np.column_stack([1.0 - v - u, v, u])
+        w[~t["ok"][f]] = 1.0 / 3.0
+        w = np.clip(w, 0.0, None)
+        return w / w.sum(axis=1, keepdims=True)
+
     def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
         """The smooth normal field at points on faces: barycentric vertex-normal blend.
 
@@ -580,13 +677,13 @@ class ModelIndex:
         if f.size and (f.min() < 0 or f.max() >= m):
             raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
         tri = self.faces[f]  # (n, 3)
-        a, b, c = (self.vertices[tri[:, i]] for i in range(3))
-        w = _barycentric(P, a, b, c)
+        w = self._barycentric(P, f)
         normals = np.einsum("ni,nij->nj", w, self.vertex_normals[tri])
         norm = np.linalg.norm(normals, axis=1)
         bad = ~(norm > 1e-12)
         if bad.any():
-            fn = np.cross(b[bad] - a[bad], c[bad] - a[bad])
+            a, b, c = (self.vertices[tri[bad, i]] for i in range(3))
+            fn = np.cross(b - a, c - a)
             normals[bad] = fn
             norm[bad] = np.linalg.norm(fn, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -594,22 +691,36 @@ class ModelIndex:
         return np.nan_to_num(normals, nan=0.0)
 
 
-def _barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates (n, 3) of points ``p`` in triangles ``abc``, clipped to it."""
-    v0, v1, v2 = b - a, c - a, p - a
-    d00 = np.einsum("ij,ij->i", v0, v0)
-    d01 = np.einsum("ij,ij->i", v0, v1)
-    d11 = np.einsum("ij,ij->i", v1, v1)
-    d20 = np.einsum("ij,ij->i", v2, v0)
-    d21 = np.einsum("ij,ij->i", v2, v1)
-    den = d00 * d11 - d01 * d01
-    ok = den > 1e-300
-    w = np.full((len(p), 3), 1.0 / 3.0)
-    v = (d11[ok] * d20[ok] - d01[ok] * d21[ok]) / den[ok]
-    u = (d00[ok] * d21[ok] - d01[ok] * d20[ok]) / den[ok]
-    w[ok] = np.column_stack([1.0 - v - u, v, u])
-    w = np.clip(w, 0.0, None)
-    return w / w.sum(axis=1, keepdims=True)
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays (np.cross costs more in overhead)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Per face and edge (01, 12, 20), the bulge d_ij = (p_j - p_i) . (n_j - n_i) / 2.
+
+    The quadratic patch h(b) = sum b_i b_j d_ij over a face's edges, with b its barycentric
+    coordinates, is the height of the smooth surface above the flat face that its vertex
+    normals imply (on a circle of radius R through two vertices L apart it gives the
+    sagitta L^2 / (8 R) at the middle of the edge), and it agrees across shared edges. An
+    edge whose normals differ by more than ``defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG`` is a
+    crease (a rim between a side and a flat cap), where a smooth surface is not implied:
+    its bulge is zero.
+    """
+    out = np.zeros((len(F), 3))
+    cos_max = np.cos(np.radians(defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG))
+    for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
+        pi, pj = V[F[:, i]], V[F[:, j]]
+        ni, nj = N[F[:, i]], N[F[:, j]]
+        d = 0.5 * np.einsum("ij,ij->i", pj - pi, nj - ni)
+        smooth = np.einsum("ij,ij->i", ni, nj) >= cos_max
+        out[:, k] = np.where(smooth, d, 0.0)
+    out.setflags(write=False)
+    return out
 
 
 def _unpickle_index(args: dict) -> ModelIndex:

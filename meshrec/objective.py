@@ -25,11 +25,15 @@ class Residuals:
     Attributes
     ----------
     values : (n,) float
-        Euclidean distance to the surface, signed by the side of the closest face's normal.
+        Distance to the surface, signed by the side of the closest face's normal: the
+        Euclidean distance to the closest point of the mesh, less the height there of the
+        smooth surface that the vertex normals imply (see
+        :meth:`meshrec.ModelIndex.smooth_offsets`).
     closest : (n, 3) float
         Closest points on the surface.
     gradient : (n, 3) float
-        Unit gradient of each residual with respect to its point.
+        Gradient of each residual with respect to its point (unit, up to the slope of the
+        smooth surface over the face).
     """
 
     values: np.ndarray
@@ -61,7 +65,11 @@ def residuals(model, points: np.ndarray) -> Residuals:
     tiny = dist <= 1e-12 * max(1.0, float(np.abs(points).max(initial=0.0)))
     unit[tiny] = normals[tiny]
     unit[~tiny] *= sign[~tiny, None]
-    return Residuals(values=sign * dist, closest=closest, gradient=unit)
+    # Distance to the smooth surface the vertex normals imply, not to the flat faces: the
+    # height of that surface above the face is subtracted, and its slope along the face
+    # (the closest point moves with the point) from the gradient.
+    heights, slopes = model.smooth_offsets_and_gradients(closest, face)
+    return Residuals(values=sign * dist - heights, closest=closest, gradient=unit - slopes)
 
 
 def mean_distances(model, points: np.ndarray) -> np.ndarray:

@@ -131,11 +131,12 @@ def test_steepest_descent_reference_agrees_with_the_default(surfaces):
     assert paper.error == pytest.approx(fast.error, rel=0.1)
 
 
-def test_a_model_without_candidates_is_rejected_with_its_reason(surfaces, objects):
-    # A touch on the unit ellipsoid has curvatures near 1; the millimetre objects' are
-    # near 1/30: the lookup finds nothing there and says so.
-    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=3)
-    rec = meshrec.recognize(sim.touch, objects)
+def test_a_model_without_candidates_is_rejected_with_its_reason(objects):
+    # A touch on the sphere has K = 1/33^2 mm^-2; the circular cylinders' sides have K = 0
+    # and their caps H = 0: the lookup finds nothing on them and says so.
+    sim = _object_touch(objects["sphere"], 3)
+    cylinders = [objects["cylinder_1"], objects["cylinder_2"]]
+    rec = meshrec.recognize(sim.touch, cylinders)
     assert rec.best is None
     assert all(r.rejected and r.candidates == 0 for r in rec.ranking)
     assert all("no vertex with K=" in r.reason for r in rec.ranking)
