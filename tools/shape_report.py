@@ -3,15 +3,16 @@
 For every bundled shape, simulate seeded touches, recognise each against the shape's own
 library, and print a Markdown table: successes, the localisation error ||p - p*|| (modulo
 the shape's symmetries; on the objects' curved sides, modulo their symmetries and the
-position along the axis, see ``_object_loc_error``) and the wall time of one recognition.
+position along the axis, see ``meshrec.bench.object_localisation_error``) and the wall time
+of one recognition.
 
     .venv/bin/python tools/shape_report.py --trials 10
 
 The paper surfaces use the paper's simulation protocol (61 points per curve, noise
 +-0.001); the experiment objects use its experiment's (41 points per curve, +-0.1 mm),
-with contacts on their curved sides, away from the rims (a flat cap cannot tell the
-objects apart, and a curve across a sharp rim has no curvature to estimate). Uses only
-meshrec's public API.
+with contacts on their curved sides, away from the rims (``meshrec.bench.paper_touch``: a
+flat cap cannot tell the objects apart, and a curve across a sharp rim has no curvature to
+estimate). Uses only meshrec's public API.
 """
 
 from __future__ import annotations
@@ -25,44 +26,15 @@ from pathlib import Path
 import numpy as np
 
 import meshrec
+from meshrec import bench
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
-
-
-def _touch(model, library_name, seed):
-    if library_name == "surfaces":
-        return meshrec.simulate_touch(model, rng=seed)
-    # Objects: redraw (deterministically) until the contact is on a curved side, far
-    # enough from the rims (|z| < 20 mm of the 50 mm half-height) that no curve crosses
-    # a sharp edge onto a flat cap.
-    for k in range(1000):
-        sim = meshrec.simulate_touch(model, rng=seed * 1000 + k, n_points=41, noise=0.1)
-        if model.name == "sphere" or (abs(sim.normal[2]) < 0.1 and abs(sim.contact[2]) < 20):
-            return sim
-    raise RuntimeError(f"no side contact found on {model.name}")
-
-
-def _object_loc_error(name, true_contact, found_contact):
-    """||p - p*|| modulo the object's symmetries, on its curved side.
-
-    Away from the caps a touch cannot see where along the axis it is, so the axial
-    coordinate is free. The elliptic cylinder keeps its four symmetries of the ellipse
-    (sign flips of x and y); on a circular cylinder every side point is equivalent, and on
-    the sphere every point, so what remains there is the radial distance.
-    """
-    p, q = np.asarray(true_contact), np.asarray(found_contact)
-    if name == "sphere":
-        return abs(np.linalg.norm(p) - np.linalg.norm(q))
-    if name == "elliptic_cylinder":
-        flips = np.array([[1, 1], [-1, 1], [1, -1], [-1, -1]])
-        return float(np.min(np.linalg.norm(p[:2] - flips * q[:2], axis=1)))
-    return abs(np.linalg.norm(p[:2]) - np.linalg.norm(q[:2]))
 
 
 def _row(library, library_name, name, trials, first_seed):
     ok, errs, times, ratios = 0, [], [], []
     for seed in range(first_seed, first_seed + trials):
-        sim = _touch(library[name], library_name, seed)
+        sim = bench.paper_touch(library[name], seed)
         t0 = time.perf_counter()
         rec = meshrec.recognize(sim.touch, library)
         times.append(time.perf_counter() - t0)
@@ -72,7 +44,7 @@ def _row(library, library_name, name, trials, first_seed):
             if name in meshrec.PAPER_SURFACES:
                 errs.append(meshrec.localisation_error(name, sim.contact, best.contact))
             else:
-                errs.append(_object_loc_error(name, sim.contact, best.contact))
+                errs.append(bench.object_localisation_error(name, sim.contact, best.contact))
             wrong = [r.error for r in rec.ranking[1:] if r.error is not None]
             if wrong:
                 ratios.append(min(wrong) / best.error)
