@@ -12,7 +12,7 @@ SEED   ?= 7
 $(BIN)/.meshrec-installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -e ".[test,viz]"
 	touch $@
 
 install: $(BIN)/.meshrec-installed

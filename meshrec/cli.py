@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, defaults
+from .geometry import estimate_local_geometry
 from .library import ModelLibrary, bundled_models_dir
 from .recognize import Recognition, recognize
 from .simulate import simulate_touch
@@ -89,6 +90,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--points", type=int, default=defaults.SIM_POINTS, help="points per curve")
     s.add_argument("--length", type=float, default=None, help="curve length (model units)")
     s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
+    _add_viz_parsers(sub, models_arg)
     return p
 
 
@@ -191,12 +193,18 @@ def _library(args, progress=None) -> ModelLibrary:
 
 
 def _run(args) -> int:
+    if args.command in ("show", "plot"):
+        return _run_viz(args)
     if args.command == "recognize":
         if args.top is not None and args.top < 1:
             raise ValueError(f"--top must be at least 1, got {args.top}")
         touch = TouchData.from_file(args.touch_file)
         if args.contact is not None or args.normal is not None:
             touch = touch.with_hints(contact=args.contact, normal=args.normal)
+        try:  # fail fast, before indexing, on curves that no model can match
+            estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
+        except ValueError as exc:
+            raise ValueError(f"touch file {args.touch_file}: {exc}") from exc
         library = _library(args)
         rec = recognize(touch, library, method=args.method)
         if args.json:
@@ -230,6 +238,121 @@ def _run(args) -> int:
         f"{sim.model}, true contact {c}" + (f"; truth in {args.truth}" if args.truth else "") + "\n"
     )
     return 0
+
+
+def _size_arg(text: str) -> tuple[int, int]:
+    """Parse ``WxH`` (pixels) for ``--size``."""
+    parts = text.lower().split("x")
+    try:
+        w, h = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, got {text!r}") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"expected positive WIDTHxHEIGHT, got {text!r}")
+    return w, h
+
+
+def _add_viz_parsers(sub, models_arg) -> None:
+    """The ``show`` and ``plot`` subcommands (pictures; need the ``viz`` extra)."""
+    v = sub.add_parser(
+        "show", help="view the registration in 3D (open3d window, or a PNG with --screenshot)"
+    )
+    v.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
+    models_arg(v)
+    v.add_argument("--model", help="model to show (default: the recognised one)")
+    v.add_argument("--truth", type=Path, help="truth JSON (meshrec simulate --truth)")
+    v.add_argument("--screenshot", type=Path, help="render off-screen to this PNG, no window")
+    v.add_argument("--size", type=_size_arg, default=(1024, 768), help="WxH pixels (1024x768)")
+    v.add_argument(
+        "--view",
+        choices=("contact", "model"),
+        default="contact",
+        help="frame the contact region (default) or the whole model",
+    )
+
+    pl = sub.add_parser("plot", help="the paper's figures as PNG plots (matplotlib)")
+    kinds = pl.add_subparsers(dest="plot", required=True)
+    ph = kinds.add_parser("phi", help="error against phi at a candidate (Figure 2)")
+    se = kinds.add_parser("search", help="candidates and local-search paths (Figure 3)")
+    for q in (ph, se):
+        q.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
+        models_arg(q)
+        q.add_argument("--model", help="model (default: the recognised one)")
+        q.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
+        q.add_argument("--size", type=_size_arg, default=None, help="WxH pixels")
+    ph.add_argument(
+        "--candidate",
+        type=int,
+        default=None,
+        help="candidate index (default: the one with the least sampled error)",
+    )
+    se.add_argument("--truth", type=Path, help="truth JSON: mark the true contact")
+
+
+def _viz_registration(args, touch, library):
+    """(model index, registration) for ``--model`` or the recognised model."""
+    from .register import register
+
+    if args.model is not None:
+        if args.model not in library:
+            raise ValueError(f"--model must be one of {list(library.names)}, got {args.model!r}")
+        model = library[args.model]
+        reg = register(touch, model)
+        if reg.rejected:
+            raise ValueError(f"--model {args.model}: {reg.reason}")
+        return model, reg
+    rec = recognize(touch, library)
+    if rec.best is None:
+        raise ValueError("no model recognised: the table lookup rejected every model")
+    return library[rec.best.model], rec.best
+
+
+def _run_viz(args) -> int:
+    from . import plots, viz  # they import open3d and matplotlib only when drawing
+
+    try:
+        if args.command == "show":  # fail fast, before any work, without the viz extra
+            if args.screenshot is None:
+                viz.check_display()
+            viz.check_offscreen()
+        else:
+            plots.check_matplotlib()
+        touch = TouchData.from_file(args.touch_file)
+        library = _library(args)
+        if args.command == "show":
+            model, reg = _viz_registration(args, touch, library)
+            kw = dict(touch=touch, truth=args.truth, mesh=model, size=args.size, view=args.view)
+            if args.screenshot is None:
+                viz.show(reg, **kw)
+                return 0
+            snap = viz.render(reg, args.screenshot, **kw)
+            c = np.array2string(reg.contact, precision=5)
+            sys.stdout.write(
+                f"wrote {snap.path} ({snap.size[0]}x{snap.size[1]}): {reg.model}, "
+                f"contact {c}, error {reg.error:.4g}\n"
+            )
+            return 0
+        size = {} if args.size is None else {"size": args.size}
+        if args.plot == "phi":
+            if args.model is None:
+                model, _ = _viz_registration(args, touch, library)
+            elif args.model in library:
+                model = library[args.model]
+            else:
+                raise ValueError(
+                    f"--model must be one of {list(library.names)}, got {args.model!r}"
+                )
+            profile = plots.phi_profile(touch, model, candidate=args.candidate)
+            out = plots.phi_figure(profile, args.output, **size)
+            detail = f"candidate {profile.candidate}, phi {profile.phi:.4f} rad"
+        else:
+            model, reg = _viz_registration(args, touch, library)
+            out = plots.search_figure(reg, args.output, mesh=model, truth=args.truth, **size)
+            detail = f"{reg.candidates} candidates, {len(reg.search_paths)} searches"
+        sys.stdout.write(f"wrote {out}: {model.name}, {detail}\n")
+        return 0
+    except (viz.VizDependencyError, viz.RenderError) as exc:
+        raise ValueError(str(exc)) from None
 
 
 def _join_vector_options(argv: list[str]) -> list[str]:
@@ -275,6 +398,11 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args)
     except ValueError as exc:
         sys.stderr.write(f"meshrec: error: {exc}\n")
+        return 2
+    except OSError as exc:  # e.g. an output file that cannot be written
+        target = exc.filename2 or exc.filename  # a rename's destination, else the file
+        where = f" {target}:" if target else ""
+        sys.stderr.write(f"meshrec: error:{where} {exc.strerror or exc}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("meshrec: interrupted\n")
