@@ -30,7 +30,7 @@ from . import __version__
 
 #: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
 #: cleaned and oriented by meshrec.mesh before indexing).
-_FORMAT = 2
+_FORMAT = 3
 _KEY_NAME = "__cache_key__"
 _CHECKSUM_NAME = "__cache_checksum__"
 _RESERVED = (_KEY_NAME, _CHECKSUM_NAME)

@@ -38,7 +38,9 @@ from . import defaults
 from .cache import ArrayCache, CacheWarning, file_sha256, make_key
 from .mesh import check_mesh_path, load_mesh
 
-_ARRAYS = ("vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid")
+_ARRAYS = (
+    "vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid", "edge_bulge"
+)
 _SCALARS = ("closed", "scale", "avg_edge", "radius_edges", "curvature_radius", "build_seconds")
 
 
@@ -52,17 +54,22 @@ class IndexParams:
         Curvature ball radius as a fraction of ``sqrt(surface area)``.
     min_radius, max_radius : int
         Bounds of the ball radius, in mean edge lengths.
+    crease_angle_deg : float
+        Adjacent vertex normals further apart than this mark a crease, where the smooth
+        distance does not bulge the faces (see :meth:`ModelIndex.smooth_offsets`).
 
     Raises
     ------
     ValueError
-        If ``curvature_fraction`` is not a finite positive number, or the radii are not
-        integers with ``1 <= min_radius <= max_radius``.
+        If ``curvature_fraction`` is not a finite positive number, the radii are not
+        integers with ``1 <= min_radius <= max_radius``, or ``crease_angle_deg`` is not
+        in (0, 180].
     """
 
     curvature_fraction: float = defaults.CURVATURE_SCALE_FRACTION
     min_radius: int = defaults.CURVATURE_MIN_RADIUS
     max_radius: int = defaults.CURVATURE_MAX_RADIUS
+    crease_angle_deg: float = defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG
 
     def __post_init__(self) -> None:
         f = self.curvature_fraction
@@ -81,6 +88,14 @@ class IndexParams:
                 f"max_radius must be >= min_radius, got max_radius={self.max_radius!r} "
                 f"and min_radius={self.min_radius!r}"
             )
+        a = self.crease_angle_deg
+        if (
+            isinstance(a, bool)
+            or not isinstance(a, numbers.Real)
+            or not (math.isfinite(a) and 0 < a <= 180)
+        ):
+            raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {a!r}")
+        object.__setattr__(self, "crease_angle_deg", float(a))
         object.__setattr__(self, "curvature_fraction", float(f))
         object.__setattr__(self, "min_radius", int(self.min_radius))
         object.__setattr__(self, "max_radius", int(self.max_radius))
@@ -205,6 +220,7 @@ def _build_arrays(vertices: np.ndarray, faces: np.ndarray, params: IndexParams) 
     k1, k2, dir1, dir2, valid = _curvatures(vertices, faces, radius_edges)
     valid &= normal_ok
     closed = bool(trimesh.Trimesh(vertices, faces, process=False).is_watertight)
+    bulge = _edge_bulges(vertices, faces, normals, params.crease_angle_deg)
     return {
         "vertices": vertices,
         "faces": faces,
@@ -214,6 +230,7 @@ def _build_arrays(vertices: np.ndarray, faces: np.ndarray, params: IndexParams) 
         "dir1": dir1,
         "dir2": dir2,
         "valid": valid,
+        "edge_bulge": bulge,
         "closed": closed,
         "scale": scale,
         "avg_edge": avg_edge,
@@ -286,6 +303,9 @@ class ModelIndex:
         Whether the arrays came from the on-disk cache.
     load_seconds : float
         Wall time of :meth:`from_file` (hashing, cache load or build, tree building).
+    edge_bulge : (m, 3) float64 or None
+        Per face and edge, the smooth surface's bulge (see ``_edge_bulges``), cached with
+        the curvature table; ``None``: computed from the vertex normals.
     K, H : (n,) float64
         Gaussian ``k1 * k2`` and mean ``(k1 + k2) / 2`` curvature (derived).
     face_normals : (m, 3) float64
@@ -316,6 +336,7 @@ class ModelIndex:
     build_seconds: float = 0.0
     from_cache: bool = False
     load_seconds: float = 0.0
+    edge_bulge: np.ndarray | None = field(default=None, repr=False)
     K: np.ndarray = field(init=False, repr=False)
     H: np.ndarray = field(init=False, repr=False)
     _kh_scale: float = field(init=False, repr=False)
@@ -323,7 +344,6 @@ class ModelIndex:
     _kdtree: cKDTree = field(init=False, repr=False)
     _aabb: igl.AABB = field(init=False, repr=False)
     face_normals: np.ndarray = field(init=False, repr=False)
-    _edge_bulge: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         def put(name, value):
@@ -386,7 +406,11 @@ class ModelIndex:
         face_normals = igl.per_face_normals(V, F, np.zeros(3))
         face_normals.setflags(write=False)
         put("face_normals", face_normals)
-        put("_edge_bulge", _edge_bulges(V, F, self.vertex_normals))
+        if self.edge_bulge is None:
+            bulge = _edge_bulges(V, F, self.vertex_normals, self.params.crease_angle_deg)
+        else:
+            bulge = _readonly(self.edge_bulge, np.float64, (len(F), 3), "edge_bulge")
+        put("edge_bulge", bulge)
 
     def __reduce__(self):
         # The AABB tree cannot be pickled: pickle the fields and rebuild the trees.
@@ -593,7 +617,7 @@ class ModelIndex:
         """
         f = np.asarray(face, dtype=np.int64)
         w = self._barycentric(np.asarray(closest, dtype=np.float64), f)
-        d = self._edge_bulge[f]
+        d = self.edge_bulge[f]
         w0, w1, w2 = w.T
         d0, d1, d2 = d.T
         heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
@@ -700,19 +724,20 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray) -> np.ndarray:
+def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray, crease_deg: float) -> np.ndarray:
     """Per face and edge (01, 12, 20), the bulge d_ij = (p_j - p_i) . (n_j - n_i) / 2.
 
     The quadratic patch h(b) = sum b_i b_j d_ij over a face's edges, with b its barycentric
     coordinates, is the height of the smooth surface above the flat face that its vertex
     normals imply (on a circle of radius R through two vertices L apart it gives the
     sagitta L^2 / (8 R) at the middle of the edge), and it agrees across shared edges. An
-    edge whose normals differ by more than ``defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG`` is a
+    edge whose normals differ by more than ``crease_deg`` degrees
+    (``defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG`` by default) is a
     crease (a rim between a side and a flat cap), where a smooth surface is not implied:
     its bulge is zero.
     """
     out = np.zeros((len(F), 3))
-    cos_max = np.cos(np.radians(defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG))
+    cos_max = np.cos(np.radians(crease_deg))
     for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
         pi, pj = V[F[:, i]], V[F[:, j]]
         ni, nj = N[F[:, i]], N[F[:, j]]

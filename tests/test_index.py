@@ -103,6 +103,9 @@ def test_params_defaults_and_radius():
         ({"max_radius": 2.5}, "max_radius must be an integer >= 1, got 2.5"),
         ({"min_radius": True}, "min_radius"),
         ({"min_radius": 5, "max_radius": 3}, "max_radius must be >= min_radius"),
+        ({"crease_angle_deg": 0.0}, r"crease_angle_deg must be in \(0, 180\] degrees, got 0.0"),
+        ({"crease_angle_deg": 181}, "crease_angle_deg"),
+        ({"crease_angle_deg": float("inf")}, "crease_angle_deg"),
     ],
 )
 def test_params_errors(kwargs, match):
@@ -398,6 +401,25 @@ def test_cache_rebuilds_on_changed_bytes_or_params(tmp_path):
     assert ModelIndex.from_file(path, params=params, cache_dir=cache).from_cache
     path.write_text(path.read_text() + "\n# a comment changes the bytes\n")
     assert not ModelIndex.from_file(path, cache_dir=cache).from_cache
+    assert not ModelIndex.from_file(
+        path, params=IndexParams(crease_angle_deg=10.0), cache_dir=cache
+    ).from_cache
+
+
+def test_cached_edge_bulges_are_those_of_the_vertex_normals(tmp_path):
+    # Twin: the cached bulge table equals one computed afresh from the cached normals.
+    mesh = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=32)
+    _index(tmp_path, mesh, "can")
+    idx = ModelIndex.from_file(tmp_path / "can.stl", cache_dir=tmp_path / "cache")
+    assert idx.from_cache
+    fresh = dataclasses.replace(idx, edge_bulge=None)
+    assert np.array_equal(fresh.edge_bulge, idx.edge_bulge)
+    # The rims are creases (90 deg between side and cap normals): no bulge there; the
+    # side's edges around the circle bulge outwards by chord^2 / (8 r), up to rounding.
+    assert np.count_nonzero(idx.edge_bulge == 0.0) > 0
+    assert idx.edge_bulge.max() > 0.0
+    with pytest.raises(ValueError, match="edge_bulge"):
+        dataclasses.replace(idx, edge_bulge=np.zeros((3, 3)))
 
 
 def test_corrupt_cache_file_warns_and_rebuilds(tmp_path):

@@ -62,7 +62,8 @@ TARGET_SECONDS, TARGET_BUILD, TARGET_LOAD = 1.0, 2.0, 0.1
 
 
 def _versions() -> str:
-    import igl
+    from importlib.metadata import PackageNotFoundError, version
+
     import scipy
     import trimesh
 
@@ -72,8 +73,11 @@ def _versions() -> str:
         f"numpy {np.__version__}",
         f"scipy {scipy.__version__}",
         f"trimesh {trimesh.__version__}",
-        f"libigl {getattr(igl, '__version__', '?')}",
     ]
+    try:  # igl itself has no __version__
+        parts.append(f"libigl {version('libigl')}")
+    except PackageNotFoundError:
+        parts.append("libigl ?")
     try:
         o3d = baseline.load_open3d()
         parts.append(f"open3d {o3d.__version__}")
