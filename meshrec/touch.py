@@ -194,6 +194,8 @@ class TouchData:
             malformed (the message names the file and the problem).
         """
         path = Path(path)
+        if path.is_dir():
+            raise ValueError(f"touch file {path}: is a directory, expected a file")
         suffix = path.suffix.lower()
         if suffix == ".csv":
             return cls.from_csv(path)

@@ -169,6 +169,9 @@ CASES = {
         cli=False,
     ),
     "directory": Case(lambda f, g, s: _mkdir(f / "folder.csv"), r"folder\.csv: is a directory"),
+    "directory_without_suffix": Case(
+        lambda f, g, s: _mkdir(f / "folder"), r"folder: is a directory"
+    ),
     "pipe": Case(
         lambda f, g, s: _fifo(f / "pipe.csv"), r"pipe\.csv: not a regular file", cli=False
     ),
