@@ -275,34 +275,21 @@ def _baseline(library, rows, n, label, out, length_fraction):
 
 
 def _figure6(library, rows, n, path):
-    """The paper's Figure 6: true contacts as dots, the contacts found as crosses."""
-    import matplotlib
+    """The paper's Figure 6 (meshrec.plots): true contacts as dots, the found as crosses."""
+    from meshrec import plots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(10, 9))
-    for k, name in enumerate(meshrec.PAPER_SURFACES):
-        ax = axes.flat[k]
-        m = library[name]
-        x, y, z = m.vertices.T
-        ax.tripcolor(x, y, m.faces, z, cmap="Greys", alpha=0.45, shading="gouraud")
+    groups = {}
+    for name in meshrec.PAPER_SURFACES:
         sym = meshrec.symmetry_rotations(name)
+        pairs = []
         for t in [t for t in rows if t.shape == name][:n]:
             p = t.true_contact
-            # The found contact's symmetric twin nearest the truth (the same answer).
-            q = min((S @ t.found_contact for S in sym), key=lambda v: np.linalg.norm(v - p))
-            ax.plot(*p[:2], "o", color="tab:blue", ms=5)
-            ax.plot(*q[:2], "x", color="tab:red", ms=8, mew=1.8)
-        ax.set_title(f"({'abcd'[k]}) {name.replace('_', ' ')}, seen from +z")
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-    fig.suptitle("True contacts p (dots) and the contacts p* found (crosses)")
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            q = t.found_contact
+            if q is not None:  # its symmetric twin nearest the truth (the same answer)
+                q = min((S @ q for S in sym), key=lambda v: np.linalg.norm(v - p))
+            pairs.append((p, q))
+        groups[name] = pairs
+    plots.contacts_figure(groups, path, meshes={m.name: m for m in library})
 
 
 def main(argv=None) -> int:
