@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out
-SEED   ?= 7
+SEED   ?= 9
 
 .PHONY: install demo test lint clean
 

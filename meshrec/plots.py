@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from . import defaults
+from ._pixels import check_size
 from .chart import SurfacePoint, rotation_z, tangent_frame
 from .mesh import load_mesh
 from .objective import mean_distances
@@ -81,17 +82,7 @@ def check_matplotlib() -> None:
 
 
 def _check_size(size, name: str = "size") -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in size)
-        ok = all(float(v) == int(v) for v in size)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be (width, height) in pixels, got {size!r}") from None
-    if not ok or not (_MIN_SIZE <= w <= _MAX_SIZE and _MIN_SIZE <= h <= _MAX_SIZE):
-        raise ValueError(
-            f"{name} must be (width, height) with each in {_MIN_SIZE}..{_MAX_SIZE} pixels, "
-            f"got {size!r}"
-        )
-    return w, h
+    return check_size(size, _MIN_SIZE, _MAX_SIZE, name)
 
 
 def _check_png(path) -> Path:

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._pixels import check_size
 from .mesh import load_mesh
 from .transform import apply_transform
 
@@ -295,17 +296,7 @@ class _Scene:
 
 
 def _check_size(size) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in size)
-        ok = all(float(v) == int(v) for v in size)
-    except (TypeError, ValueError):
-        raise ValueError(f"size must be (width, height) in pixels, got {size!r}") from None
-    if not ok or not (_MIN_SIZE <= w <= _MAX_SIZE and _MIN_SIZE <= h <= _MAX_SIZE):
-        raise ValueError(
-            f"size must be (width, height) with each in {_MIN_SIZE}..{_MAX_SIZE} pixels, "
-            f"got {size!r}"
-        )
-    return w, h
+    return check_size(size, _MIN_SIZE, _MAX_SIZE)
 
 
 def _pick_registration(result, model, touch):
@@ -345,6 +336,18 @@ def _pick_registration(result, model, touch):
     return reg, touch
 
 
+def _other_model(name: str, model_name: str) -> bool:
+    """Whether a truth names another model than the one shown (then warn: not drawn)."""
+    if name and name != model_name:
+        warnings.warn(
+            f"truth is for model {name!r}, not {model_name!r}: true curves not drawn",
+            UserWarning,
+            stacklevel=4,
+        )
+        return True
+    return False
+
+
 def _load_truth(truth, touch, model_name: str):
     """(true curves, true contact) in model coordinates, or ((), None)."""
     if truth is None:
@@ -353,12 +356,7 @@ def _load_truth(truth, touch, model_name: str):
 
     if isinstance(truth, SimulatedTouch):
         name = truth.model
-        if name and name != model_name:
-            warnings.warn(
-                f"truth is for model {name!r}, not {model_name!r}: true curves not drawn",
-                UserWarning,
-                stacklevel=3,
-            )
+        if _other_model(name, model_name):
             return (), None
         return tuple(np.asarray(c, dtype=np.float64) for c in truth.clean_curves), np.asarray(
             truth.contact, dtype=np.float64
@@ -387,12 +385,7 @@ def _load_truth(truth, touch, model_name: str):
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"truth['T_model_touch'] must be a finite 4x4 matrix, got {T.shape}")
     name = truth.get("model") or ""
-    if name and name != model_name:
-        warnings.warn(
-            f"truth is for model {name!r}, not {model_name!r}: true curves not drawn",
-            UserWarning,
-            stacklevel=3,
-        )
+    if _other_model(name, model_name):
         return (), None
     curves = tuple(apply_transform(T, np.asarray(c, dtype=np.float64)) for c in touch.curves)
     contact = truth.get("contact")
