@@ -16,7 +16,6 @@ these functions; figures are drawn on an Agg canvas (no display, no pyplot state
 from __future__ import annotations
 
 import importlib
-import json
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -496,18 +495,12 @@ def phi_figure(profile: PhiProfile, path, *, size=(1100, 480)) -> Path:
 def _truth_contact(truth) -> np.ndarray | None:
     if truth is None:
         return None
-    from .simulate import SimulatedTouch
+    from .simulate import SimulatedTouch, _read_truth_file
 
     if isinstance(truth, SimulatedTouch):
         return np.asarray(truth.contact, dtype=np.float64)
     if isinstance(truth, (str, os.PathLike)):
-        p = Path(truth)
-        try:
-            truth = json.loads(p.read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise ValueError(f"truth file {str(p)!r} cannot be read: {exc.strerror}") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"truth file {str(p)!r} is not JSON: {exc.msg}") from None
+        truth = _read_truth_file(truth)
     if isinstance(truth, Mapping) and "contact" in truth:
         c = np.asarray(truth["contact"], dtype=np.float64).reshape(-1)
         if c.shape == (3,) and np.all(np.isfinite(c)):

@@ -300,6 +300,32 @@ def simulate_touch(
 
 
 # ---------------------------------------------------------------------------- validation
+def _read_truth_file(path) -> dict:
+    """Read a truth JSON file written by ``meshrec simulate --truth``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    dict
+        Its content (``model``, ``contact``, ``T_model_touch``, ...), not yet checked.
+
+    Raises
+    ------
+    ValueError
+        If the file cannot be read or is not JSON.
+    """
+    p = Path(path)
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"truth file {str(p)!r} cannot be read: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"truth file {str(p)!r} is not JSON: {exc.msg}") from None
+
+
 def _check_n_points(n_points) -> int:
     """Return ``n_points`` as an int, or raise ValueError unless it is odd and >= 5."""
     if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):

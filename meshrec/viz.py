@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import importlib
-import json
 import os
 import re
 import sys
@@ -352,7 +351,7 @@ def _load_truth(truth, touch, model_name: str):
     """(true curves, true contact) in model coordinates, or ((), None)."""
     if truth is None:
         return (), None
-    from .simulate import SimulatedTouch
+    from .simulate import SimulatedTouch, _read_truth_file
 
     if isinstance(truth, SimulatedTouch):
         name = truth.model
@@ -362,13 +361,7 @@ def _load_truth(truth, touch, model_name: str):
             truth.contact, dtype=np.float64
         )
     if isinstance(truth, (str, os.PathLike)):
-        p = Path(truth)
-        try:
-            truth = json.loads(p.read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise ValueError(f"truth file {str(p)!r} cannot be read: {exc.strerror}") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"truth file {str(p)!r} is not JSON: {exc.msg}") from None
+        truth = _read_truth_file(truth)
     if not isinstance(truth, Mapping):
         raise ValueError(
             f"truth must be a SimulatedTouch, a truth dict or a truth JSON file, "

@@ -1,0 +1,193 @@
+"""meshrec.plots and ``meshrec plot``: the paper's Figures 2, 3 and 6 as PNG files.
+
+The phi profile is checked against a brute-force twin (its fine sampling of the same
+error), the pictures for their size and for not being blank.
+"""
+
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from matplotlib import image as mpimg
+
+import meshrec
+from meshrec import plots, viz
+from meshrec.cli import main
+
+SEED = 8  # a touch that the small ellipsoid registers at its true place
+
+
+def _png(path: Path) -> np.ndarray:
+    return np.round(mpimg.imread(str(path))[..., :3] * 255.0).astype(np.int64)
+
+
+def _not_blank(img: np.ndarray) -> None:
+    assert img.std() > 10
+    assert np.mean(np.all(img >= 250, axis=2)) < 0.98
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 20
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("models")
+    mesh = trimesh.creation.icosphere(subdivisions=4)
+    mesh.apply_scale([1.0, 0.8, 0.5])
+    mesh.export(folder / "ellipsoid.stl")
+    trimesh.creation.box(extents=[2.0, 2.0, 2.0]).export(folder / "box.stl")
+    cache = tmp_path_factory.mktemp("cache")
+    library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
+    sim = meshrec.simulate_touch(library["ellipsoid"], rng=SEED)
+    rec = meshrec.recognize(sim.touch, library)
+    files = tmp_path_factory.mktemp("touch")
+    sim.write(files / "touch.csv", files / "truth.json")
+    return types.SimpleNamespace(
+        folder=folder, cache=cache, library=library, sim=sim, rec=rec, files=files
+    )
+
+
+@pytest.fixture(scope="module")
+def profile(setup):
+    return plots.phi_profile(setup.sim.touch, setup.library["ellipsoid"])
+
+
+# ------------------------------------------------------------------ Figure 2: phi
+def test_phi_profile_minimum_is_the_fine_samplings(profile):
+    # Brute-force twin: the chosen phi is at least as good as the best of 720 angles,
+    # and lies within two of their steps of it (modulo 2 pi).
+    k = int(np.argmin(profile.errors))
+    assert profile.error <= profile.errors[k] + 1e-9
+    step = 2.0 * np.pi / len(profile.phis)
+    gap = abs((profile.phi - profile.phis[k] + np.pi) % (2.0 * np.pi) - np.pi)
+    assert gap <= 2.0 * step
+    assert profile.minima[0, 0] == pytest.approx(profile.phi)
+    assert len(profile.brackets) == len(profile.refined) >= 1
+    assert profile.refined.any()
+
+
+def test_phi_profile_default_candidate_has_the_least_sampled_error(setup, profile):
+    model = setup.library["ellipsoid"]
+    others = [plots.phi_profile(setup.sim.touch, model, candidate=i, samples=36) for i in (0, 1)]
+    for other in others:
+        assert profile.grid_errors.min() <= other.grid_errors.min() + 1e-12
+
+
+def test_phi_figure_writes_a_png_of_the_requested_size(profile, tmp_path):
+    out = plots.phi_figure(profile, tmp_path / "sub" / "phi.png", size=(600, 300))
+    assert out == tmp_path / "sub" / "phi.png"
+    img = _png(out)
+    assert img.shape == (300, 600, 3)
+    _not_blank(img)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"samples": 10}, "samples must be an integer >= 36, got 10"),
+        ({"samples": True}, "samples must be an integer"),
+        ({"candidate": -1}, "candidate must be an index 0.."),
+        ({"candidate": 10**6}, "candidate must be an index 0.."),
+        ({"candidate": 1.5}, "candidate must be an index"),
+    ],
+)
+def test_phi_profile_rejects_bad_arguments(setup, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        plots.phi_profile(setup.sim.touch, setup.library["ellipsoid"], **kwargs)
+
+
+def test_phi_profile_rejects_a_model_without_candidates_and_a_non_touch(setup):
+    with pytest.raises(ValueError, match="model 'box' has no candidate for this touch"):
+        plots.phi_profile(setup.sim.touch, setup.library["box"])
+    with pytest.raises(ValueError, match="touch must be a TouchData, got list"):
+        plots.phi_profile([], setup.library["ellipsoid"])
+
+
+def test_phi_figure_rejects_bad_arguments(profile, tmp_path):
+    with pytest.raises(ValueError, match="profile must be a PhiProfile, got dict"):
+        plots.phi_figure({}, tmp_path / "a.png")
+    with pytest.raises(ValueError, match=r"\.png"):
+        plots.phi_figure(profile, tmp_path / "a.jpg")
+    with pytest.raises(ValueError, match="size must be"):
+        plots.phi_figure(profile, tmp_path / "a.png", size=(10, 10))
+
+
+# --------------------------------------------------------------- Figure 3: search
+def test_search_figure_writes_a_png(setup, tmp_path):
+    reg = setup.rec.best
+    assert len(reg.search_paths) >= 1
+    assert len(reg.candidate_points) == reg.candidates
+    out = plots.search_figure(reg, tmp_path / "search.png", truth=setup.sim, size=(800, 400))
+    img = _png(out)
+    assert img.shape == (400, 800, 3)
+    _not_blank(img)
+    # the truth file gives the same picture as the SimulatedTouch
+    again = plots.search_figure(
+        reg, tmp_path / "again.png", truth=setup.files / "truth.json", size=(800, 400)
+    )
+    assert np.array_equal(_png(again), img)
+
+
+def test_search_figure_rejects_bad_arguments(setup, tmp_path):
+    with pytest.raises(ValueError, match="registration must be a Registration, got str"):
+        plots.search_figure("reg", tmp_path / "a.png")
+    rejected = next(r for r in setup.rec.ranking if r.rejected)
+    with pytest.raises(ValueError, match="registration must not be rejected, got 'box'"):
+        plots.search_figure(rejected, tmp_path / "a.png")
+    with pytest.raises(ValueError, match=r"\.png"):
+        plots.search_figure(setup.rec.best, tmp_path / "a.jpg")
+    with pytest.raises(ValueError, match="cannot be read"):
+        plots.search_figure(setup.rec.best, tmp_path / "a.png", truth=tmp_path / "none.json")
+
+
+# ------------------------------------------------------- Figure 6: contacts
+def test_contacts_figure_writes_one_panel_per_surface(setup, tmp_path):
+    p, q = setup.sim.contact, setup.rec.best.contact
+    groups = {"ellipsoid": [(p, q), (p, None)], "elsewhere": [(p, q)]}
+    out = plots.contacts_figure(
+        groups,
+        tmp_path / "f6.png",
+        meshes={"ellipsoid": setup.library["ellipsoid"]},
+        size=(700, 350),
+    )
+    img = _png(out)
+    assert img.shape == (350, 700, 3)
+    _not_blank(img)
+
+
+def test_contacts_figure_rejects_bad_arguments(setup, tmp_path):
+    p = setup.sim.contact
+    with pytest.raises(ValueError, match="columns must be a positive integer, got 0"):
+        plots.contacts_figure({"a": [(p, p)]}, tmp_path / "a.png", columns=0)
+    with pytest.raises(ValueError, match="meshes must be a mapping"):
+        plots.contacts_figure({"a": [(p, p)]}, tmp_path / "a.png", meshes=[1])
+    with pytest.raises(ValueError, match=r"\.png"):
+        plots.contacts_figure({"a": [(p, p)]}, tmp_path / "a.jpg")
+
+
+# ------------------------------------------------------------ dependencies, CLI
+def test_missing_matplotlib_names_the_package(monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
+    with pytest.raises(viz.VizDependencyError, match="pip install 'meshrec\\[viz\\]'"):
+        plots.check_matplotlib()
+
+
+def test_cli_plot_phi_and_search(setup, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MESHREC_CACHE_DIR", str(setup.cache))
+    touch = str(setup.files / "touch.csv")
+    models = ["--models", str(setup.folder)]
+    code = main(["plot", "phi", touch, *models, "-o", str(tmp_path / "phi.png")])
+    assert code == 0
+    assert "wrote" in capsys.readouterr().out
+    _not_blank(_png(tmp_path / "phi.png"))
+    truth = str(setup.files / "truth.json")
+    code = main(["plot", "search", touch, *models, "--truth", truth, "-o", str(tmp_path / "s.png")])
+    assert code == 0
+    _not_blank(_png(tmp_path / "s.png"))
+    bad = ["--candidate", "99999", "-o", str(tmp_path / "x.png")]
+    code = main(["plot", "phi", touch, *models, *bad])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("meshrec: error: candidate must be an index")
+    assert err.count("\n") == 1
