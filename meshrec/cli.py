@@ -98,12 +98,10 @@ def _progress_printer(stream):
     tty = stream.isatty()
 
     def progress(i: int, n: int, name: str) -> None:
-        if tty:
+        if tty:  # one line, redrawn; the caller ends it (after the library is built)
             width = 30
             done = int(width * i / max(n, 1))
-            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:30]:<30}")
-            if i + 1 == n:
-                stream.write("\n")
+            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:40]:<40}")
         else:
             stream.write(f"indexing {i + 1}/{n}: {name}\n")
         stream.flush()
@@ -214,6 +212,8 @@ def _run(args) -> int:
         return 0
     if args.command == "index":
         library = _library(args, progress=_progress_printer(sys.stderr))
+        if sys.stderr.isatty():
+            sys.stderr.write("\n")  # end the progress line
         for m in library.models:
             how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
             sys.stdout.write(

@@ -26,6 +26,7 @@ import numbers
 import os
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -432,6 +433,7 @@ class ModelIndex:
         params: IndexParams | None = None,
         cache_dir: str | os.PathLike | None = None,
         force: bool = False,
+        stage: Callable[[str], None] | None = None,
     ) -> ModelIndex:
         """Index a mesh file, using the on-disk cache.
 
@@ -445,6 +447,10 @@ class ModelIndex:
             The cache folder; ``None``: :func:`meshrec.cache.default_cache_dir`.
         force : bool
             Rebuild (and rewrite the cache entry) even if a valid entry exists.
+        stage : callable, optional
+            ``stage(what)`` is called as a build starts each of its stages ("loading the
+            mesh", "curvature", "writing the cache", "trees"): progress for a large mesh.
+            Not called for an index loaded from the cache.
 
         Returns
         -------
@@ -483,9 +489,14 @@ class ModelIndex:
                         stacklevel=2,
                     )
         if index is None:
+            say = stage if stage is not None else (lambda what: None)
+            say("loading the mesh")
             vertices, faces = load_mesh(p)
+            say("curvature")
             arrays = _build_arrays(vertices, faces, params)
+            say("writing the cache")
             cache.save(key, {k: np.asarray(v) for k, v in arrays.items()}, label=p.stem)
+            say("trees")
             index = cls._from_arrays(p, params, arrays, from_cache=False)
         object.__setattr__(index, "load_seconds", time.perf_counter() - t0)
         return index

@@ -11,7 +11,8 @@ from pathlib import Path
 from .index import IndexParams, ModelIndex
 from .mesh import MESH_SUFFIXES, is_mesh_file
 
-#: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed.
+#: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed, and
+#: again as each stage of a build starts, with ``name`` then "NAME (stage)".
 ProgressCallback = Callable[[int, int, str], None]
 
 
@@ -66,7 +67,8 @@ class ModelLibrary:
         force : bool
             Rebuild every index even if cached.
         progress : callable or None
-            ``progress(i, n, name)`` called before model ``i`` (0-based) of ``n``.
+            ``progress(i, n, name)`` called before model ``i`` (0-based) of ``n``, and as
+            each stage of a build starts, with ``name`` "NAME (stage)".
 
         Returns
         -------
@@ -182,8 +184,14 @@ class ModelLibrary:
                 )
             else:
                 try:
+                    stage = None
+                    if progress is not None:
+
+                        def stage(what, i=i, name=path.stem):
+                            progress(i, n, f"{name} ({what})")
+
                     model = ModelIndex.from_file(
-                        path, params=params, cache_dir=cache_dir, force=force
+                        path, params=params, cache_dir=cache_dir, force=force, stage=stage
                     )
                 except ValueError as exc:
                     reason = str(exc)

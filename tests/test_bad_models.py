@@ -211,7 +211,7 @@ def cli_runs(tmp_path_factory):
 def assert_index_error(proc, pattern: str) -> None:
     """Exit status 2, no traceback, one error line; ``index`` also reports its progress."""
     progress = [ln for ln in proc.stderr.splitlines() if ln.startswith("indexing ")]
-    assert all(re.fullmatch(r"indexing \d+/\d+: \S+", ln) for ln in progress)
+    assert all(re.fullmatch(r"indexing \d+/\d+: \S+( \([a-z ]+\))?", ln) for ln in progress)
     errors = "".join(ln + "\n" for ln in proc.stderr.splitlines() if ln not in progress)
     rest = subprocess.CompletedProcess(proc.args, proc.returncode, proc.stdout, errors)
     assert_one_line_error(rest, pattern)

@@ -46,13 +46,23 @@ def test_from_folder(folder, tmp_path, recwarn):
     assert [(p.name, why.split(" (")[0]) for p, why in lib.skipped] == [
         ("README.txt", "not a mesh file")
     ]
-    assert calls == [(0, 3, "Box"), (1, 3, "ball"), (2, 3, "can")]
+    stages = ["loading the mesh", "curvature", "writing the cache", "trees"]
+    assert calls == [
+        (i, 3, label)
+        for i, name in enumerate(["Box", "ball", "can"])
+        for label in [name, *(f"{name} ({s})" for s in stages)]
+    ]
     assert "ball" in repr(lib)
     with pytest.raises(KeyError, match="no model named 'nope'"):
         lib["nope"]
-    # everything cached now; the model folder is untouched
-    again = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    # everything cached now, and loading from the cache reports no stages; the model
+    # folder is untouched
+    calls.clear()
+    again = ModelLibrary.from_folder(
+        folder, cache_dir=tmp_path / "cache", progress=lambda i, n, name: calls.append((i, n, name))
+    )
     assert all(m.from_cache for m in again)
+    assert calls == [(0, 3, "Box"), (1, 3, "ball"), (2, 3, "can")]
     assert sorted(p.name for p in folder.iterdir()) == [
         ".DS_Store",
         "Box.obj",
