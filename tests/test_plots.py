@@ -5,19 +5,14 @@ error), the pictures for their size and for not being blank.
 """
 
 import sys
-import types
 from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
 from matplotlib import image as mpimg
 
-import meshrec
 from meshrec import plots, viz
 from meshrec.cli import main
-
-SEED = 8  # a touch that the small ellipsoid registers at its true place
 
 
 def _png(path: Path) -> np.ndarray:
@@ -31,21 +26,8 @@ def _not_blank(img: np.ndarray) -> None:
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("models")
-    mesh = trimesh.creation.icosphere(subdivisions=4)
-    mesh.apply_scale([1.0, 0.8, 0.5])
-    mesh.export(folder / "ellipsoid.stl")
-    trimesh.creation.box(extents=[2.0, 2.0, 2.0]).export(folder / "box.stl")
-    cache = tmp_path_factory.mktemp("cache")
-    library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
-    sim = meshrec.simulate_touch(library["ellipsoid"], rng=SEED)
-    rec = meshrec.recognize(sim.touch, library)
-    files = tmp_path_factory.mktemp("touch")
-    sim.write(files / "touch.csv", files / "truth.json")
-    return types.SimpleNamespace(
-        folder=folder, cache=cache, library=library, sim=sim, rec=rec, files=files
-    )
+def setup(touched_ellipsoid):
+    return touched_ellipsoid
 
 
 @pytest.fixture(scope="module")

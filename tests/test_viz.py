@@ -13,15 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
 from matplotlib import image as mpimg
 
 import meshrec
 from meshrec import viz
 from meshrec.cli import main
 from meshrec.transform import apply_transform
-
-SEED = 8  # a touch the small ellipsoid registers at its true place (not its twin)
 
 
 def _read_png(path: Path) -> np.ndarray:
@@ -41,22 +38,8 @@ def _near(img: np.ndarray, xy, color, radius: float, tol: int = 40) -> int:
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
-    """A small ellipsoid (5120 faces), a seeded touch on it and its registration."""
-    folder = tmp_path_factory.mktemp("models")
-    mesh = trimesh.creation.icosphere(subdivisions=4)
-    mesh.apply_scale([1.0, 0.8, 0.5])
-    mesh.export(folder / "ellipsoid.stl")
-    cache = tmp_path_factory.mktemp("cache")
-    library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
-    model = library["ellipsoid"]
-    sim = meshrec.simulate_touch(model, rng=SEED)
-    rec = meshrec.recognize(sim.touch, library)
-    files = tmp_path_factory.mktemp("touch")
-    sim.write(files / "touch.csv", files / "truth.json")
-    return types.SimpleNamespace(
-        folder=folder, cache=cache, library=library, model=model, sim=sim, rec=rec, files=files
-    )
+def setup(touched_ellipsoid):
+    return touched_ellipsoid
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +104,7 @@ def test_many_sizes_in_one_process_then_a_clean_exit(setup, tmp_path):
         "from meshrec import viz\n"
         f"lib = meshrec.ModelLibrary.from_folder({str(setup.folder)!r}, "
         f"cache_dir={str(setup.cache)!r})\n"
-        f"sim = meshrec.simulate_touch(lib['ellipsoid'], rng={SEED})\n"
+        f"sim = meshrec.simulate_touch(lib['ellipsoid'], rng={setup.seed})\n"
         "rec = meshrec.recognize(sim.touch, lib)\n"
         "for size in [(64, 48), (32, 24), (48, 48)]:\n"
         "    assert viz.render(rec, size=size).image.shape == (size[1], size[0], 3)\n"
