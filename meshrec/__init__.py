@@ -17,7 +17,13 @@ Typical use::
 __version__ = "0.1.0"
 
 from .candidates import curvature_tolerance
-from .geometry import CommonPoint, LocalGeometry, estimate_local_geometry, find_common_point
+from .geometry import (
+    CommonPoint,
+    LocalGeometry,
+    RoughFitWarning,
+    estimate_local_geometry,
+    find_common_point,
+)
 from .index import IndexParams, ModelIndex
 from .library import ModelLibrary, bundled_models_dir
 from .mesh import load_mesh
@@ -36,6 +42,7 @@ __all__ = [
     "ModelLibrary",
     "Recognition",
     "Registration",
+    "RoughFitWarning",
     "SimulatedTouch",
     "StageTimes",
     "TouchData",

@@ -40,6 +40,7 @@ non-umbilic surfaces and not that of H, and biases curves that do not quite meet
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -52,9 +53,14 @@ from meshrec import defaults
 __all__ = [
     "CommonPoint",
     "LocalGeometry",
+    "RoughFitWarning",
     "estimate_local_geometry",
     "find_common_point",
 ]
+
+
+class RoughFitWarning(UserWarning):
+    """The curves fit no smooth surface patch well: they may cross an edge or a rim."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -118,6 +124,11 @@ class LocalGeometry:
         2-norm condition number of the Euler least-squares system, rows
         (cos^2, 2 cos sin, sin^2) of each tangent's angle: sqrt(2) for three tangents 60
         degrees apart, 68 for 0, 10, 20 degrees; large means nearly parallel tangents.
+    noise_rms : float
+        The data noise per coordinate estimated without any model of the shape, from the
+        third differences d of consecutive samples along each curve: sqrt(mean(d^2) / 20)
+        (independent noise of deviation s gives E[d^2] = 20 s^2; a smooth curve sampled
+        finely adds little). Compare ``fit_rms``: see :attr:`fit_to_noise`.
     """
 
     point: np.ndarray
@@ -132,6 +143,20 @@ class LocalGeometry:
     fit_rms: float
     half_length: float
     condition: float
+    noise_rms: float
+
+    @property
+    def fit_to_noise(self) -> float:
+        """``fit_rms / noise_rms``: about 1 where the curves lie on one smooth patch.
+
+        Well above 1 (``defaults.ROUGH_FIT_RATIO``), the curve fits leave more than the
+        noise: the curves cross an edge, a rim or a bump smaller than their length, and
+        the curvature estimate describes no single surface. ``inf`` for noiseless data
+        whose fits leave a residual.
+        """
+        if self.noise_rms > 0.0:
+            return self.fit_rms / self.noise_rms
+        return math.inf if self.fit_rms > 0.0 else 1.0
 
     def flipped(self) -> LocalGeometry:
         """The same geometry seen from the other side of the surface.
@@ -159,6 +184,7 @@ class LocalGeometry:
             fit_rms=self.fit_rms,
             half_length=self.half_length,
             condition=self.condition,
+            noise_rms=self.noise_rms,
         )
 
 
@@ -173,6 +199,17 @@ def _order_ratio(points: np.ndarray) -> float:
     if len(step) == 0 or len(near) == 0:
         return 1.0
     return float(np.median(step) / np.median(near))
+
+
+def _third_difference_noise(curves: list[np.ndarray]) -> float:
+    """Noise per coordinate from the third differences of the samples (see LocalGeometry).
+
+    Hand-written: neither numpy nor scipy has a noise estimator for sampled curves; this
+    is the classic difference-based one (the shape's part of a third difference shrinks
+    with the cube of the sample spacing, the noise's does not).
+    """
+    d = np.vstack([np.diff(c, n=3, axis=0) for c in curves])
+    return float(np.sqrt(np.mean(d * d) / 20.0))
 
 
 def _check_curves(curves) -> list[np.ndarray]:
@@ -687,6 +724,7 @@ def estimate_local_geometry(
         fit_rms=fit_rms,
         half_length=half_length,
         condition=condition,
+        noise_rms=_third_difference_noise(cs),
     )
     # orientation: the pre-flip normal is canonical (largest component positive)
     flip = float(n @ hint) < 0.0 if hint is not None else geom.H < 0.0

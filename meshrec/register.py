@@ -8,6 +8,7 @@ position and phi on surface charts, and a final rigid refinement of the best sea
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,7 +16,7 @@ import numpy as np
 from . import defaults
 from .candidates import find_candidates
 from .chart import SurfacePoint, rotation_z, tangent_frame
-from .geometry import LocalGeometry, estimate_local_geometry
+from .geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
 from .objective import mean_distances
 from .phi import search_phi
 from .refine import refine_rigid
@@ -133,8 +134,30 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
     ValueError
         If the curves do not allow an estimate (see
         :func:`meshrec.geometry.estimate_local_geometry`).
+
+    Warns
+    -----
+    RoughFitWarning
+        If the curve fits leave more than ``defaults.ROUGH_FIT_RATIO`` times the noise
+        that the samples show (and more than ``defaults.ROUGH_FIT_MIN_FRACTION`` of the
+        half-length): the curves may cross an edge or a rim, where the recognition is
+        less reliable.
     """
-    return estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
+    g = estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
+    ratio = g.fit_to_noise
+    if ratio > defaults.ROUGH_FIT_RATIO and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * (
+        g.half_length
+    ):
+        warnings.warn(
+            f"the curves fit no smooth surface patch: the curve fits leave {g.fit_rms:.3g}, "
+            f"{ratio:.3g} times the noise the samples show ({g.noise_rms:.3g}; "
+            f"defaults.ROUGH_FIT_RATIO = {defaults.ROUGH_FIT_RATIO:g}): they may cross an "
+            "edge or a rim, where the curvature estimate and the recognition are less "
+            "reliable; touch again away from edges",
+            RoughFitWarning,
+            stacklevel=3,
+        )
+    return g
 
 
 def _sides(geometry: LocalGeometry, touch: TouchData, model) -> list[LocalGeometry]:

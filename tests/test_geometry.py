@@ -346,6 +346,9 @@ def test_noisy_curves_accuracy(name):
     assert np.mean(err_n) <= NOISY_TOL_NORMAL_MEAN_DEG
     # fit_rms estimates the per-coordinate noise level, NOISE / sqrt(3)
     assert np.median(rms) == pytest.approx(NOISE / np.sqrt(3), rel=0.1)
+    # ... and so does noise_rms, from the samples alone: on one smooth patch they agree
+    assert g.noise_rms == pytest.approx(NOISE / np.sqrt(3), rel=0.15)
+    assert 0.7 < g.fit_to_noise < 1.5
 
 
 def test_sphere_sign_convention_and_umbilic():
@@ -452,7 +455,12 @@ def test_flipped():
     assert np.linalg.det(f.frame) == pytest.approx(1.0)
     for name in ("point", "tangents"):
         assert np.array_equal(getattr(f, name), getattr(g, name))
-    assert (f.fit_rms, f.half_length, f.condition) == (g.fit_rms, g.half_length, g.condition)
+    assert (f.fit_rms, f.half_length, f.condition, f.noise_rms) == (
+        g.fit_rms,
+        g.half_length,
+        g.condition,
+        g.noise_rms,
+    )
     ff = f.flipped()
     for name in ("point", "normal", "frame", "tangents", "normal_curvatures"):
         assert np.array_equal(getattr(ff, name), getattr(g, name))

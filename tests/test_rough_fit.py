@@ -1,0 +1,80 @@
+"""The rough-fit diagnostic: curves that cross an edge are told from curves on one patch."""
+
+import dataclasses
+import math
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+import meshrec
+from meshrec import defaults
+from meshrec.cli import main
+
+
+@pytest.fixture(scope="module")
+def shapes(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("models")
+    box = trimesh.creation.box(extents=[2.0, 2.0, 2.0])
+    for _ in range(4):
+        box = box.subdivide()
+    box.export(folder / "box.stl")
+    trimesh.creation.cylinder(radius=1.0, height=3.0, sections=128).export(folder / "can.stl")
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path_factory.mktemp("c"))
+
+
+def _edge_touch(shapes):
+    # 0.1 from the box's top edge: the curves, 0.6 long, run over it onto the side.
+    return meshrec.simulate_touch(shapes["box"], rng=1, contact=[0.9, 0.0, 1.0], noise=1e-3)
+
+
+def test_curves_across_an_edge_fit_worse_than_their_noise(shapes):
+    g = meshrec.estimate_local_geometry(_edge_touch(shapes).touch.curves)
+    assert g.fit_to_noise > defaults.ROUGH_FIT_RATIO
+    assert g.noise_rms == pytest.approx(1e-3 / math.sqrt(3), rel=0.4)
+
+
+def test_register_and_recognize_warn_across_an_edge(shapes):
+    touch = _edge_touch(shapes).touch
+    with pytest.warns(meshrec.RoughFitWarning, match="may cross an edge or a rim"):
+        meshrec.register(touch, shapes["box"])
+    with pytest.warns(meshrec.RoughFitWarning, match=r"times the noise the samples show"):
+        meshrec.recognize(touch, shapes)
+
+
+def test_no_warning_on_one_smooth_patch_or_without_noise(shapes):
+    smooth = meshrec.simulate_touch(shapes["can"], rng=0, contact=[1.0, 0.0, 0.0], noise=1e-3)
+    clean = meshrec.simulate_touch(shapes["can"], rng=0, contact=[1.0, 0.0, 0.0], noise=0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for sim in (smooth, clean):
+            g = meshrec.estimate_local_geometry(sim.touch.curves)
+            meshrec.register(sim.touch, shapes["can"], geometry=None)
+    assert meshrec.estimate_local_geometry(smooth.touch.curves).fit_to_noise < 1.5
+    assert g.fit_rms < defaults.ROUGH_FIT_MIN_FRACTION * g.half_length  # the clean one
+
+
+def test_fit_to_noise_without_noise():
+    g = meshrec.estimate_local_geometry(
+        [np.column_stack([t, a * t, 0.1 * t**2]) for a, t in
+         [(0.0, np.linspace(-1, 1, 21)), (1.0, np.linspace(-1, 1, 21)),
+          (-2.0, np.linspace(-1, 1, 21))]]
+    )
+    assert dataclasses.replace(g, noise_rms=0.0, fit_rms=0.0).fit_to_noise == 1.0
+    assert dataclasses.replace(g, noise_rms=0.0, fit_rms=1e-9).fit_to_noise == math.inf
+    assert dataclasses.replace(g, noise_rms=2.0, fit_rms=1.0).fit_to_noise == 0.5
+
+
+def test_cli_prints_one_warning_line_and_still_answers(shapes, tmp_path, capsys):
+    sim = _edge_touch(shapes)
+    sim.write(tmp_path / "edge.csv", tmp_path / "truth.json")
+    folder = str(shapes["box"].path.parent)
+    code = main(["recognize", str(tmp_path / "edge.csv"), "--models", folder,
+                 "--cache-dir", str(tmp_path / "cache")])
+    out, err = capsys.readouterr()
+    assert code == 0
+    assert "recognised:" in out
+    lines = [ln for ln in err.splitlines() if "may cross an edge" in ln]
+    assert len(lines) == 1
+    assert lines[0].startswith("meshrec: warning: the curves fit no smooth surface patch")
