@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out
-SEED   ?= 9
+SEED   ?= 24
 
 .PHONY: install demo test lint clean
 
