@@ -215,7 +215,7 @@ def run_trials(library, shapes, trials: int, first_seed: int = 0, *,
             right = by_name[shape]
             wrong = [r for r in rec.ranking if r.model != shape]
             wrong_errors = [r.error for r in wrong if not r.rejected]
-            oracle = refine_pose(sim.touch, model, sim.T_model_touch)
+            oracle = refine_pose(sim.touch, model, sim.T_model_touch, geometry=rec.geometry)
             times = StageTimes()
             for r in rec.ranking:
                 times = times + r.times

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, defaults
-from .geometry import estimate_local_geometry
 from .library import ModelLibrary, bundled_models_dir
 from .recognize import Recognition, recognize
+from .register import touch_geometry
 from .simulate import simulate_touch
 from .touch import TouchData
 
@@ -200,11 +200,11 @@ def _run(args) -> int:
         if args.contact is not None or args.normal is not None:
             touch = touch.with_hints(contact=args.contact, normal=args.normal)
         try:  # fail fast, before indexing, on curves that no model can match
-            estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
+            geometry = touch_geometry(touch)
         except ValueError as exc:
             raise ValueError(f"touch file {args.touch_file}: {exc}") from exc
         library = _library(args)
-        rec = recognize(touch, library, method=args.method)
+        rec = recognize(touch, library, method=args.method, geometry=geometry)
         if args.json:
             sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
         else:

@@ -665,7 +665,12 @@ class ModelIndex:
         return table
 
     def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them."""
+        """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
+
+        Not ``igl.barycentric_coordinates_tri`` or trimesh's ``points_to_barycentric``:
+        both recompute each face's dot products on every call, and this runs at every
+        residual evaluation of the searches; the per-face constants are tabulated once.
+        """
         t = self._face_table()
         v2 = p - t["a"][f]
         d20 = np.einsum("ij,ij->i", v2, t["v0"][f])

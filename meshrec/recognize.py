@@ -96,6 +96,7 @@ def recognize(
     library,
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
+    geometry: LocalGeometry | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -109,6 +110,9 @@ def recognize(
         The local-search optimiser.
     progress : callable, optional
         Called as ``progress(i, n, name)`` before each model is registered.
+    geometry : LocalGeometry, optional
+        The local geometry at the contact, if already estimated (by
+        :func:`meshrec.register.touch_geometry`); estimated here otherwise.
 
     Returns
     -------
@@ -126,7 +130,8 @@ def recognize(
     if not models:
         raise ValueError("library must hold at least one model, got none")
     _check_units(touch, models)
-    geometry = touch_geometry(touch)
+    if geometry is None:
+        geometry = touch_geometry(touch)
     results = []
     for i, model in enumerate(models):
         if progress is not None:

@@ -320,15 +320,16 @@ def register(
     t_phi += time.perf_counter() - t0
 
     # Local search from the best candidates on a subsample of the points, then a rigid
-    # refinement on all of them of the few best results. The searches stop early once
-    # several in a row have not improved on a best that already fits the data to the
-    # noise level (the distance residuals of a right superposition are the noise, whose
-    # RMS the curve fits estimate), or that is far worse than a rival model's error.
+    # refinement on all of them of the best results (defaults.REFINE_BEST). The searches
+    # stop early once several in a row have not improved on a best that already fits the
+    # data to the noise level (the distance residuals of a right superposition are the
+    # noise, whose RMS the curve fits estimate), or that is far worse than a rival
+    # model's error.
     t_search = t_refine = 0.0
     found_all = []
     paths = []
     search_sub = _subsample(len(points), defaults.SEARCH_POINTS)
-    noise_rms = float(geometry.fit_rms)
+    fit_rms = float(geometry.fit_rms)
     stale = 0
     t0 = time.perf_counter()
     for side, local, origin, phi in seeds:
@@ -339,7 +340,7 @@ def register(
         stale = 0 if better else stale + 1
         found_all.append((side, found))
         best = min(best_so_far, found.error)
-        settled = best <= defaults.SEARCH_GOOD_FIT * noise_rms or (
+        settled = best <= defaults.SEARCH_GOOD_FIT * fit_rms or (
             rival_error is not None and best > defaults.RIVAL_RATIO * rival_error
         )
         if stale >= defaults.SEARCH_PATIENCE and settled:
@@ -379,7 +380,12 @@ def register(
     )
 
 
-def refine_pose(touch: TouchData, model, T_model_touch: np.ndarray) -> Registration:
+def refine_pose(
+    touch: TouchData,
+    model,
+    T_model_touch: np.ndarray,
+    geometry: LocalGeometry | None = None,
+) -> Registration:
     """Register touch data onto one model starting from a known pose.
 
     Runs only the final rigid refinement of :func:`register` (all six degrees of freedom)
@@ -395,6 +401,9 @@ def refine_pose(touch: TouchData, model, T_model_touch: np.ndarray) -> Registrat
         The model.
     T_model_touch : (4, 4) float
         The starting pose, mapping touch-frame points to model coordinates.
+    geometry : LocalGeometry, optional
+        The local geometry at the contact, if already estimated (its point locates the
+        contact on the model).
 
     Returns
     -------
@@ -418,7 +427,8 @@ def refine_pose(touch: TouchData, model, T_model_touch: np.ndarray) -> Registrat
     ):
         raise ValueError("T_model_touch must be a rigid transform (rotation and translation)")
     t_start = time.perf_counter()
-    geometry = touch_geometry(touch)
+    if geometry is None:
+        geometry = touch_geometry(touch)
     t0 = time.perf_counter()
     ref = refine_rigid(model, touch.points, T0)
     t_refine = time.perf_counter() - t0
