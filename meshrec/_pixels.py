@@ -1,6 +1,12 @@
-"""Picture sizes in pixels, checked alike by :mod:`meshrec.viz` and :mod:`meshrec.plots`."""
+"""Picture files shared by :mod:`meshrec.viz` and :mod:`meshrec.plots`: sizes, atomic writes."""
 
 from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
 
 
 def check_size(size, low: int, high: int, name: str = "size") -> tuple[int, int]:
@@ -27,10 +33,46 @@ def check_size(size, low: int, high: int, name: str = "size") -> tuple[int, int]
     try:
         w, h = (int(v) for v in size)
         ok = all(float(v) == int(v) for v in size)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be (width, height) in pixels, got {size!r}") from None
     if not ok or not (low <= w <= high and low <= h <= high):
         raise ValueError(
             f"{name} must be (width, height) with each in {low}..{high} pixels, got {size!r}"
         )
     return w, h
+
+
+def write_png_atomic(path, write: Callable[[str], None]) -> Path:
+    """Write a PNG through a temporary file in its folder and a rename.
+
+    An interrupted or failed write leaves no half-written picture at ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The PNG; its folder is created.
+    write : callable
+        ``write(tmp)`` writes the picture to the file name ``tmp``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OSError
+        If the folder or the file cannot be written (the temporary file is removed).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return path

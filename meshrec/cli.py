@@ -196,13 +196,7 @@ def _run(args) -> int:
     if args.command == "recognize":
         if args.top is not None and args.top < 1:
             raise ValueError(f"--top must be at least 1, got {args.top}")
-        touch = TouchData.from_file(args.touch_file)
-        if args.contact is not None or args.normal is not None:
-            touch = touch.with_hints(contact=args.contact, normal=args.normal)
-        try:  # fail fast, before indexing, on curves that no model can match
-            geometry = touch_geometry(touch)
-        except ValueError as exc:
-            raise ValueError(f"touch file {args.touch_file}: {exc}") from exc
+        touch, geometry = _read_touch(args)
         library = _library(args)
         rec = recognize(touch, library, method=args.method, geometry=geometry)
         if args.json:
@@ -289,19 +283,40 @@ def _add_viz_parsers(sub, models_arg) -> None:
     se.add_argument("--truth", type=Path, help="truth JSON: mark the true contact")
 
 
-def _viz_registration(args, touch, library):
+def _read_touch(args):
+    """The touch file with its hints, and its local geometry: bad data fail here, before
+    any model is indexed."""
+    touch = TouchData.from_file(args.touch_file)
+    contact, normal = getattr(args, "contact", None), getattr(args, "normal", None)
+    if contact is not None or normal is not None:
+        touch = touch.with_hints(contact=contact, normal=normal)
+    try:
+        geometry = touch_geometry(touch)
+    except ValueError as exc:
+        raise ValueError(f"touch file {args.touch_file}: {exc}") from exc
+    return touch, geometry
+
+
+def _model_arg(args, library):
+    """The model named by ``--model``, or None when it is not given."""
+    if args.model is None:
+        return None
+    if args.model not in library:
+        raise ValueError(f"--model must be one of {list(library.names)}, got {args.model!r}")
+    return library[args.model]
+
+
+def _viz_registration(args, touch, geometry, library):
     """(model index, registration) for ``--model`` or the recognised model."""
     from .register import register
 
-    if args.model is not None:
-        if args.model not in library:
-            raise ValueError(f"--model must be one of {list(library.names)}, got {args.model!r}")
-        model = library[args.model]
-        reg = register(touch, model)
+    model = _model_arg(args, library)
+    if model is not None:
+        reg = register(touch, model, geometry=geometry)
         if reg.rejected:
             raise ValueError(f"--model {args.model}: {reg.reason}")
         return model, reg
-    rec = recognize(touch, library)
+    rec = recognize(touch, library, geometry=geometry)
     if rec.best is None:
         raise ValueError("no model recognised: the table lookup rejected every model")
     return library[rec.best.model], rec.best
@@ -317,10 +332,13 @@ def _run_viz(args) -> int:
             viz.check_offscreen()
         else:
             plots.check_matplotlib()
-        touch = TouchData.from_file(args.touch_file)
+        out_path = args.screenshot if args.command == "show" else args.output
+        if out_path is not None and out_path.suffix.lower() != ".png":
+            raise ValueError(f"{out_path} must end in .png")
+        touch, geometry = _read_touch(args)
         library = _library(args)
         if args.command == "show":
-            model, reg = _viz_registration(args, touch, library)
+            model, reg = _viz_registration(args, touch, geometry, library)
             kw = dict(touch=touch, truth=args.truth, mesh=model, size=args.size, view=args.view)
             if args.screenshot is None:
                 viz.show(reg, **kw)
@@ -334,19 +352,16 @@ def _run_viz(args) -> int:
             return 0
         size = {} if args.size is None else {"size": args.size}
         if args.plot == "phi":
-            if args.model is None:
-                model, _ = _viz_registration(args, touch, library)
-            elif args.model in library:
-                model = library[args.model]
-            else:
-                raise ValueError(
-                    f"--model must be one of {list(library.names)}, got {args.model!r}"
-                )
-            profile = plots.phi_profile(touch, model, candidate=args.candidate)
+            model = _model_arg(args, library)
+            if model is None:
+                model, _ = _viz_registration(args, touch, geometry, library)
+            profile = plots.phi_profile(
+                touch, model, candidate=args.candidate, geometry=geometry
+            )
             out = plots.phi_figure(profile, args.output, **size)
             detail = f"candidate {profile.candidate}, phi {profile.phi:.4f} rad"
         else:
-            model, reg = _viz_registration(args, touch, library)
+            model, reg = _viz_registration(args, touch, geometry, library)
             out = plots.search_figure(reg, args.output, mesh=model, truth=args.truth, **size)
             detail = f"{reg.candidates} candidates, {len(reg.search_paths)} searches"
         sys.stdout.write(f"wrote {out}: {model.name}, {detail}\n")

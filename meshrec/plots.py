@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import defaults
-from ._pixels import check_size
+from ._pixels import check_size, write_png_atomic
 from .chart import SurfacePoint, rotation_z, tangent_frame
 from .mesh import load_mesh
 from .objective import mean_distances
@@ -101,9 +101,9 @@ def _new_figure(size: tuple[int, int]):
 
 
 def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=_DPI, format="png", facecolor="white")
-    return path
+    return write_png_atomic(
+        path, lambda tmp: fig.savefig(tmp, dpi=_DPI, format="png", facecolor="white")
+    )
 
 
 def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -287,7 +287,9 @@ class PhiProfile:
     error: float
 
 
-def phi_profile(touch, model, candidate: int | None = None, *, samples: int = 720) -> PhiProfile:
+def phi_profile(
+    touch, model, candidate: int | None = None, *, samples: int = 720, geometry=None
+) -> PhiProfile:
     """Repeat the registration's phi search at one candidate point, for :func:`phi_figure`.
 
     The candidates are found as :func:`meshrec.register` finds them (same lookup, same
@@ -306,6 +308,9 @@ def phi_profile(touch, model, candidate: int | None = None, *, samples: int = 72
         candidate whose best sampled error is the least.
     samples : int
         Angles of the fine curve drawn, at least 36.
+    geometry : LocalGeometry, optional
+        The local geometry at the contact, if already estimated (as for
+        :func:`meshrec.register`).
 
     Returns
     -------
@@ -325,7 +330,8 @@ def phi_profile(touch, model, candidate: int | None = None, *, samples: int = 72
         raise ValueError(f"touch must be a TouchData, got {type(touch).__name__}")
     if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 36:
         raise ValueError(f"samples must be an integer >= 36, got {samples!r}")
-    geometry = touch_geometry(touch)
+    if geometry is None:
+        geometry = touch_geometry(touch)
     points = touch.points
     scale = float(geometry.half_length)
     starts = []  # (side geometry, flipped, vertex), in register's order
@@ -355,10 +361,12 @@ def phi_profile(touch, model, candidate: int | None = None, *, samples: int = 72
 
         return error
 
+    sampled = None  # the candidate's sampled errors, when already computed
     if candidate is None:
         setups = [setup(i) for i in range(len(starts))]
         grid_errors = _phi_grid_errors(model, [s[0] for s in setups], [s[1] for s in setups])
         candidate = int(np.argmin(grid_errors.min(axis=1)))
+        sampled = grid_errors[candidate]
     elif (
         not isinstance(candidate, (int, np.integer))
         or isinstance(candidate, bool)
@@ -371,7 +379,7 @@ def phi_profile(touch, model, candidate: int | None = None, *, samples: int = 72
     candidate = int(candidate)
     origin, local_sub, flipped, v = setup(candidate)
     error = error_at(origin, local_sub)
-    ps = search_phi(error)
+    ps = search_phi(error, grid_errors=sampled)
     step = 2.0 * np.pi / len(ps.grid)
     idx = bracket_minima(ps.grid_errors)
     best_sample = float(ps.grid_errors.min())
@@ -495,16 +503,14 @@ def phi_figure(profile: PhiProfile, path, *, size=(1100, 480)) -> Path:
 def _truth_contact(truth) -> np.ndarray | None:
     if truth is None:
         return None
-    from .simulate import SimulatedTouch, _read_truth_file
+    from .simulate import SimulatedTouch, _read_truth_file, _truth_point
 
     if isinstance(truth, SimulatedTouch):
         return np.asarray(truth.contact, dtype=np.float64)
     if isinstance(truth, (str, os.PathLike)):
         truth = _read_truth_file(truth)
     if isinstance(truth, Mapping) and "contact" in truth:
-        c = np.asarray(truth["contact"], dtype=np.float64).reshape(-1)
-        if c.shape == (3,) and np.all(np.isfinite(c)):
-            return c
+        return _truth_point(truth["contact"], "truth['contact']")
     raise ValueError(
         "truth must be a SimulatedTouch, a truth dict or truth JSON file with a 'contact' "
         f"of 3 numbers, got {type(truth).__name__}"

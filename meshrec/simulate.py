@@ -326,6 +326,23 @@ def _read_truth_file(path) -> dict:
         raise ValueError(f"truth file {str(p)!r} is not JSON: {exc.msg}") from None
 
 
+def _truth_point(value, where: str) -> np.ndarray:
+    """A truth's point (its ``contact``) as a finite (3,) array.
+
+    Raises
+    ------
+    ValueError
+        Naming ``where`` if ``value`` is not three finite numbers.
+    """
+    try:
+        c = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        c = None
+    if c is None or c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise ValueError(f"{where} must be 3 finite numbers, got {value!r}")
+    return c
+
+
 def _check_n_points(n_points) -> int:
     """Return ``n_points`` as an int, or raise ValueError unless it is odd and >= 5."""
     if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import importlib
 import os
 import re
@@ -39,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._pixels import check_size
+from ._pixels import check_size, write_png_atomic
 from .mesh import load_mesh
 from .transform import apply_transform
 
@@ -351,7 +352,7 @@ def _load_truth(truth, touch, model_name: str):
     """(true curves, true contact) in model coordinates, or ((), None)."""
     if truth is None:
         return (), None
-    from .simulate import SimulatedTouch, _read_truth_file
+    from .simulate import SimulatedTouch, _read_truth_file, _truth_point
 
     if isinstance(truth, SimulatedTouch):
         name = truth.model
@@ -382,7 +383,7 @@ def _load_truth(truth, touch, model_name: str):
         return (), None
     curves = tuple(apply_transform(T, np.asarray(c, dtype=np.float64)) for c in touch.curves)
     contact = truth.get("contact")
-    contact = None if contact is None else np.asarray(contact, dtype=np.float64).reshape(3)
+    contact = None if contact is None else _truth_point(contact, "truth['contact']")
     return curves, contact
 
 
@@ -773,18 +774,13 @@ def render(
     snap = _render_scene(scene, w, h)
     if path is None:
         return snap
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not o3d.io.write_image(str(path), o3d.geometry.Image(np.ascontiguousarray(snap.image))):
-        raise ValueError(f"path {str(path)!r} cannot be written")
-    return Snapshot(
-        path=path,
-        image=snap.image,
-        intrinsic=snap.intrinsic,
-        extrinsic=snap.extrinsic,
-        model=snap.model,
-        contact=snap.contact,
-    )
+    image = o3d.geometry.Image(np.ascontiguousarray(snap.image))
+
+    def write(tmp):
+        if not o3d.io.write_image(tmp, image):
+            raise ValueError(f"path {str(path)!r} cannot be written")
+
+    return dataclasses.replace(snap, path=write_png_atomic(path, write))
 
 
 def check_display() -> None:

@@ -173,3 +173,39 @@ def test_cli_plot_phi_and_search(setup, tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.startswith("meshrec: error: candidate must be an index")
     assert err.count("\n") == 1
+
+
+def test_truth_contact_must_be_three_numbers(setup, tmp_path):
+    for bad in ({"x": 1}, [1.0, 2.0], "abc"):
+        truth = {**setup.sim.truth_dict(), "contact": bad}
+        with pytest.raises(ValueError, match=r"truth\['contact'\] must be 3 finite numbers"):
+            plots.search_figure(setup.rec.best, tmp_path / "a.png", truth=truth)
+        with pytest.raises(ValueError, match=r"truth\['contact'\] must be 3 finite numbers"):
+            viz.render(setup.rec, truth=truth, size=(32, 24))
+    assert not (tmp_path / "a.png").exists()
+
+
+def test_pictures_are_written_whole_or_not_at_all(tmp_path):
+    from meshrec._pixels import check_size, write_png_atomic
+
+    with pytest.raises(ValueError, match="size must be"):
+        check_size((float("inf"), 10), 16, 64)
+
+    def fail(tmp):
+        Path(tmp).write_bytes(b"\x89PNG half")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError, match="No space left"):
+        write_png_atomic(tmp_path / "pic.png", fail)
+    assert list(tmp_path.iterdir()) == []
+    out = write_png_atomic(tmp_path / "pic.png", lambda tmp: Path(tmp).write_bytes(b"png"))
+    assert out.read_bytes() == b"png"
+    assert [p.name for p in tmp_path.iterdir()] == ["pic.png"]
+
+
+def test_cli_refuses_a_non_png_output_before_any_work(setup, tmp_path, capsys):
+    touch = str(setup.files / "touch.csv")
+    missing = str(tmp_path / "no_models")  # never reached: the output is checked first
+    code = main(["plot", "search", touch, "--models", missing, "-o", str(tmp_path / "s.jpg")])
+    assert code == 2
+    assert capsys.readouterr().err == f"meshrec: error: {tmp_path / 's.jpg'} must end in .png\n"
