@@ -14,24 +14,23 @@ Typical use::
     print(result.best.model, result.best.contact, result.best.T_model_touch)
 """
 
-__version__ = "0.1.0"
-
-from .candidates import curvature_tolerance
-from .geometry import (
+from meshrec._version import __version__
+from meshrec.contact.geometry import (
     CommonPoint,
     LocalGeometry,
     RoughFitWarning,
     estimate_local_geometry,
     find_common_point,
 )
-from .index import IndexParams, ModelIndex
-from .library import ModelLibrary, bundled_models_dir
-from .mesh import load_mesh
-from .paper import PAPER_SURFACES, localisation_error, symmetry_rotations
-from .recognize import Recognition, recognize
-from .register import Registration, StageTimes, refine_pose, register
-from .simulate import SimulatedTouch, simulate_touch
-from .touch import TouchData
+from meshrec.io.touch import TouchData
+from meshrec.model.index import IndexParams, ModelIndex
+from meshrec.model.library import ModelLibrary, bundled_models_dir
+from meshrec.model.mesh import load_mesh
+from meshrec.recognition.recognize import Recognition, recognize
+from meshrec.registration.candidates import curvature_tolerance
+from meshrec.registration.register import Registration, StageTimes, refine_pose, register
+from meshrec.sim.paper import PAPER_SURFACES, localisation_error, symmetry_rotations
+from meshrec.sim.simulate import SimulatedTouch, simulate_touch
 
 __all__ = [
     "PAPER_SURFACES",

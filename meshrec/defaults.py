@@ -149,7 +149,7 @@ SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0
 #: the median |H| counts as zero (a flat model) and 1 / scale is used instead.
 LOOKUP_MIN_H_FRACTION = 1e-6
 
-# --- the Open3D baseline of the benchmarks (meshrec.baseline) -------------------------------
+# --- the Open3D baseline of the benchmarks (meshrec.bench.baseline) -----------------------
 #: Points sampled on each model's mesh for the baseline's target cloud.
 BASELINE_MODEL_POINTS = 20000
 #: Radius of the touch points' normal estimate, fraction of the touch data's extent.
@@ -169,7 +169,7 @@ BASELINE_STARTS = 256
 #: The best ICP results (by fitness, then RMS) rescored on the mesh.
 BASELINE_RESCORED = 8
 
-# --- benchmark protocols (meshrec.bench) -----------------------------------------------------
+# --- benchmark protocols (meshrec.bench.protocols) ----------------------------------------
 #: Points per curve and probe noise (mm) of the paper's experiment on its objects (Sec. 4).
 BENCH_OBJECT_POINTS = 41
 BENCH_OBJECT_NOISE = 0.1

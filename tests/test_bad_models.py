@@ -20,7 +20,7 @@ import trimesh
 from test_bad_touch import assert_one_line_error, run_cli
 
 from meshrec import ModelIndex, ModelLibrary, recognize, simulate_touch
-from meshrec.library import LibraryWarning
+from meshrec.model.library import LibraryWarning
 
 
 # ----------------------------------------------------------------------------- makers

@@ -32,9 +32,9 @@ from meshrec import (
 
 
 def cli_command() -> list[str]:
-    """The installed ``meshrec`` console script, else ``python -m meshrec.cli``."""
+    """The installed ``meshrec`` console script, else ``python -m meshrec.app.cli``."""
     script = Path(sys.executable).with_name("meshrec")
-    return [str(script)] if script.exists() else [sys.executable, "-m", "meshrec.cli"]
+    return [str(script)] if script.exists() else [sys.executable, "-m", "meshrec.app.cli"]
 
 
 def run_cli(args, env, cwd, timeout=300) -> subprocess.CompletedProcess:

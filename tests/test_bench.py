@@ -105,7 +105,7 @@ def test_refine_pose_errors(surfaces):
 
 def test_baseline_multistart_registers_a_touch(surfaces):
     pytest.importorskip("open3d")
-    from meshrec import baseline
+    from meshrec.bench import baseline
 
     model = surfaces["ellipsoid"]
     sim = meshrec.simulate_touch(model, rng=2)
@@ -114,11 +114,11 @@ def test_baseline_multistart_registers_a_touch(surfaces):
     assert res.model == "ellipsoid"
     assert res.error < 5e-3
     moved = sim.touch.points @ res.T_model_touch[:3, :3].T + res.T_model_touch[:3, 3]
-    assert np.abs(meshrec.paper.implicit_distance("ellipsoid", moved)).mean() < 5e-3
+    assert np.abs(meshrec.sim.paper.implicit_distance("ellipsoid", moved)).mean() < 5e-3
 
 
 def test_baseline_errors(surfaces):
-    from meshrec import baseline
+    from meshrec.bench import baseline
 
     sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=0)
     with pytest.raises(ValueError, match="method must be one of"):

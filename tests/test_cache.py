@@ -1,4 +1,4 @@
-"""Tests for meshrec.cache: keys, atomic writes, corrupt entries, unwritable folders."""
+"""Tests for meshrec.model.cache: keys, atomic writes, corrupt entries, unwritable folders."""
 
 import os
 import subprocess
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from meshrec import __version__
-from meshrec import cache as cache_mod
-from meshrec.cache import ArrayCache, CacheWarning, default_cache_dir, file_sha256, make_key
+from meshrec._version import __version__
+from meshrec.model import cache as cache_mod
+from meshrec.model.cache import ArrayCache, CacheWarning, default_cache_dir, file_sha256, make_key
 
 KEY = make_key("0" * 64, {"a": 1})
 OTHER_KEY = make_key("1" * 64, {"a": 1})
@@ -221,7 +221,7 @@ def test_concurrent_writers_of_one_key_both_succeed(tmp_path):
         f"""
         import sys, warnings
         import numpy as np
-        from meshrec.cache import ArrayCache
+        from meshrec.model.cache import ArrayCache
         warnings.simplefilter("error")
         c = ArrayCache({str(tmp_path)!r})
         x = np.arange(200000, dtype=np.float64)

@@ -10,7 +10,7 @@ import jsonschema
 import numpy as np
 import pytest
 
-from meshrec.cli import main
+from meshrec.app.cli import main
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 SCRIPT = Path(sys.executable).with_name("meshrec")

@@ -94,7 +94,7 @@ def test_transform_maps_the_touch_onto_the_truth(surfaces):
     reg = meshrec.register(sim.touch, surfaces["ellipsoid"])
     # Touch points mapped into the model lie on the surface within the noise...
     moved = sim.touch.points @ reg.T_model_touch[:3, :3].T + reg.T_model_touch[:3, 3]
-    dist = meshrec.paper.implicit_distance("ellipsoid", moved)
+    dist = meshrec.sim.paper.implicit_distance("ellipsoid", moved)
     assert dist.max() < 3 * defaults.SIM_NOISE
     # ...and the transform agrees with the true one up to a symmetry of the ellipsoid.
     best = min(

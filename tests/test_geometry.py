@@ -1,4 +1,4 @@
-"""Tests of meshrec.geometry: normal and curvatures from concurrent curves.
+"""Tests of meshrec.contact.geometry: normal and curvatures from concurrent curves.
 
 The curves are plane sections through p of analytic implicit surfaces f(x) = 0, traced
 exactly (Newton projection onto the surface and the plane, equal chord steps), with
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from meshrec import defaults
-from meshrec.geometry import (
+from meshrec.contact.geometry import (
     CommonPoint,
     LocalGeometry,
     estimate_local_geometry,
@@ -672,7 +672,7 @@ def test_condition_of_the_test_planes():
 
 
 def test_degenerate_fit_is_refused():
-    from meshrec.geometry import _fit_curve
+    from meshrec.contact.geometry import _fit_curve
 
     with pytest.raises(ValueError, match=r"curves\[4\] is degenerate near p"):
         _fit_curve(np.zeros((9, 3)), np.zeros(3), 4, "curves[4]")

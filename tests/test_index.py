@@ -1,4 +1,4 @@
-"""Tests for meshrec.index: curvature table, lookup, distance queries, caching."""
+"""Tests for meshrec.model.index: curvature table, lookup, distance queries, caching."""
 
 import dataclasses
 import itertools
@@ -10,9 +10,9 @@ import pytest
 import trimesh
 
 from meshrec import defaults
-from meshrec import index as index_mod
-from meshrec.cache import CacheWarning
-from meshrec.index import IndexParams, ModelIndex
+from meshrec.model import index as index_mod
+from meshrec.model.cache import CacheWarning
+from meshrec.model.index import IndexParams, ModelIndex
 
 
 # ----------------------------------------------------------------------------- meshes
@@ -442,7 +442,7 @@ def test_inconsistent_cache_entry_warns_and_rebuilds(tmp_path):
     _index(tmp_path, mesh, "ball")
     (entry,) = (tmp_path / "cache").iterdir()
     # A well-formed entry (right key and checksum) whose arrays do not fit together.
-    from meshrec.cache import ArrayCache
+    from meshrec.model.cache import ArrayCache
 
     with np.load(entry) as z:
         arrays = {k: z[k] for k in z.files if not k.startswith("__")}
@@ -469,7 +469,7 @@ def test_unwritable_cache_still_works(tmp_path):
 
 
 def test_read_only_cache_still_works(tmp_path, monkeypatch):
-    from meshrec import cache as cache_mod
+    from meshrec.model import cache as cache_mod
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")

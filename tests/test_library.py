@@ -1,13 +1,13 @@
-"""Tests for meshrec.library: folders of models and the bundled libraries."""
+"""Tests for meshrec.model.library: folders of models and the bundled libraries."""
 
 import warnings
 
 import pytest
 import trimesh
 
-from meshrec import library as library_mod
-from meshrec.index import IndexParams, ModelIndex
-from meshrec.library import LibraryWarning, ModelLibrary, bundled_models_dir
+from meshrec.model import library as library_mod
+from meshrec.model.index import IndexParams, ModelIndex
+from meshrec.model.library import LibraryWarning, ModelLibrary, bundled_models_dir
 
 
 @pytest.fixture

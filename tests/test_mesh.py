@@ -1,4 +1,4 @@
-"""Tests for meshrec.mesh: loading and cleaning mesh files."""
+"""Tests for meshrec.model.mesh: loading and cleaning mesh files."""
 
 import os
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshrec import mesh as mesh_mod
-from meshrec.mesh import MESH_SUFFIXES, check_mesh_path, is_mesh_file, load_mesh
+from meshrec.model import mesh as mesh_mod
+from meshrec.model.mesh import MESH_SUFFIXES, check_mesh_path, is_mesh_file, load_mesh
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshrec.index import ModelIndex
-from meshrec.objective import mean_distances, residuals
+from meshrec.model.index import ModelIndex
+from meshrec.registration.objective import mean_distances, residuals
 
 RADIUS = 2.0
 

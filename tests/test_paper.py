@@ -1,9 +1,9 @@
-"""Tests for meshrec.paper: symmetry groups and implicit distances of the paper's surfaces."""
+"""Tests for meshrec.sim.paper: symmetry groups and implicit distances of the paper's surfaces."""
 
 import numpy as np
 import pytest
 
-from meshrec.paper import (
+from meshrec.sim.paper import (
     PAPER_SURFACES,
     implicit_distance,
     localisation_error,

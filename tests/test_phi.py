@@ -1,10 +1,10 @@
-"""Tests for meshrec.phi: bracketing and refining the minima of E(phi)."""
+"""Tests for meshrec.registration.phi: bracketing and refining the minima of E(phi)."""
 
 import numpy as np
 import pytest
 
 from meshrec import defaults
-from meshrec.phi import bracket_minima, search_phi
+from meshrec.registration.phi import bracket_minima, search_phi
 
 
 def test_bracket_minima_finds_every_circular_minimum():

@@ -1,4 +1,4 @@
-"""meshrec.plots and ``meshrec plot``: the paper's Figures 2, 3 and 6 as PNG files.
+"""meshrec.figures.plots and ``meshrec plot``: the paper's Figures 2, 3 and 6 as PNG files.
 
 The phi profile is checked against a brute-force twin (its fine sampling of the same
 error), the pictures for their size and for not being blank.
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from matplotlib import image as mpimg
 
-from meshrec import plots, viz
-from meshrec.cli import main
+from meshrec.app.cli import main
+from meshrec.figures import plots, viz
 
 
 def _png(path: Path) -> np.ndarray:
@@ -186,7 +186,7 @@ def test_truth_contact_must_be_three_numbers(setup, tmp_path):
 
 
 def test_pictures_are_written_whole_or_not_at_all(tmp_path):
-    from meshrec._pixels import check_size, write_png_atomic
+    from meshrec.figures._pixels import check_size, write_png_atomic
 
     with pytest.raises(ValueError, match="size must be"):
         check_size((float("inf"), 10), 16, 64)

@@ -10,7 +10,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
-from meshrec.cli import main
+from meshrec.app.cli import main
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Tests of meshrec.simulate: simulated touches cut from meshes."""
+"""Tests of meshrec.sim.simulate: simulated touches cut from meshes."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import pytest
 import trimesh
 
 from meshrec import defaults
-from meshrec.simulate import SimulatedTouch, _closest_point, _Surface, simulate_touch
-from meshrec.touch import TouchData
+from meshrec.io.touch import TouchData
+from meshrec.sim.simulate import SimulatedTouch, _closest_point, _Surface, simulate_touch
 
 RADIUS = 2.0
 

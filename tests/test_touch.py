@@ -1,4 +1,4 @@
-"""Tests for meshrec.touch: reading, writing and validating touch data."""
+"""Tests for meshrec.io.touch: reading, writing and validating touch data."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from meshrec import defaults
-from meshrec.touch import TouchData
+from meshrec.io.touch import TouchData
 
 
 def _curves(seed=0, n=7):

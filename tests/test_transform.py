@@ -1,12 +1,12 @@
-"""Tests for meshrec.transform and the frame helpers of meshrec.chart."""
+"""Tests for meshrec.registration.transform and the frame helpers of meshrec.registration.chart."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from meshrec.candidates import curvature_tolerance, spread_points
-from meshrec.chart import SurfacePoint, rotation_z, tangent_frame
-from meshrec.transform import apply_transform, invert_transform, superposition
+from meshrec.registration.candidates import curvature_tolerance, spread_points
+from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
+from meshrec.registration.transform import apply_transform, invert_transform, superposition
 
 
 def test_tangent_frame_is_orthonormal_right_handed():

@@ -1,4 +1,4 @@
-"""meshrec.viz and ``meshrec show``: off-screen open3d pictures, checked pixel by pixel.
+"""meshrec.figures.viz and ``meshrec show``: off-screen open3d pictures, checked pixel by pixel.
 
 These tests render for real (open3d's OffscreenRenderer on Mesa's lavapipe in CI, no
 display): the PNG has the requested size, is not blank, and shows the curve colours where
@@ -16,9 +16,9 @@ import pytest
 from matplotlib import image as mpimg
 
 import meshrec
-from meshrec import viz
-from meshrec.cli import main
-from meshrec.transform import apply_transform
+from meshrec.app.cli import main
+from meshrec.figures import viz
+from meshrec.registration.transform import apply_transform
 
 
 def _read_png(path: Path) -> np.ndarray:
@@ -101,7 +101,7 @@ def test_many_sizes_in_one_process_then_a_clean_exit(setup, tmp_path):
     # sizes and still exit with status 0.
     code = (
         "import sys, meshrec\n"
-        "from meshrec import viz\n"
+        "from meshrec.figures import viz\n"
         f"lib = meshrec.ModelLibrary.from_folder({str(setup.folder)!r}, "
         f"cache_dir={str(setup.cache)!r})\n"
         f"sim = meshrec.simulate_touch(lib['ellipsoid'], rng={setup.seed})\n"
@@ -279,7 +279,7 @@ def test_vulkan_device_found():
 def test_cli_without_open3d_one_line_exit_2(setup, tmp_path):
     code = (
         "import sys; sys.modules['open3d'] = None\n"
-        "from meshrec.cli import main\n"
+        "from meshrec.app.cli import main\n"
         f"sys.exit(main(['show', {str(setup.files / 'touch.csv')!r}, "
         f"'--screenshot', {str(tmp_path / 'x.png')!r}]))\n"
     )

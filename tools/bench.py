@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 import meshrec
-from meshrec import baseline, bench, defaults
+from meshrec import bench, defaults
+from meshrec.bench import baseline
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -275,8 +276,8 @@ def _baseline(library, rows, n, label, out, length_fraction):
 
 
 def _figure6(library, rows, n, path):
-    """The paper's Figure 6 (meshrec.plots): true contacts as dots, the found as crosses."""
-    from meshrec import plots
+    """The paper's Figure 6 (meshrec.figures.plots): true contacts as dots, the found as crosses."""
+    from meshrec.figures import plots
 
     groups = {}
     for name in meshrec.PAPER_SURFACES:

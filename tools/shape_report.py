@@ -3,14 +3,14 @@
 For every bundled shape, simulate seeded touches, recognise each against the shape's own
 library, and print a Markdown table: successes, the localisation error ||p - p*|| (modulo
 the shape's symmetries; on the objects' curved sides, modulo their symmetries and the
-position along the axis, see ``meshrec.bench.object_localisation_error``) and the wall time
-of one recognition.
+position along the axis, see ``meshrec.bench.object_localisation_error``) and the wall
+time of one recognition.
 
     .venv/bin/python tools/shape_report.py --trials 10
 
 The paper surfaces use the paper's simulation protocol (61 points per curve, noise
 +-0.001); the experiment objects use its experiment's (41 points per curve, +-0.1 mm),
-with contacts on their curved sides, away from the rims (``meshrec.bench.paper_touch``: a
+with contacts on their curved sides, away from the rims (``meshrec.bench.protocols.paper_touch``: a
 flat cap cannot tell the objects apart, and a curve across a sharp rim has no curvature to
 estimate). Uses only meshrec's public API.
 """

@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from meshrec._version import __version__
 
 #: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
-#: cleaned and oriented by meshrec.mesh before indexing).
+#: cleaned and oriented by meshrec.model.mesh before indexing).
 _FORMAT = 3
 _KEY_NAME = "__cache_key__"
 _CHECKSUM_NAME = "__cache_checksum__"

@@ -40,9 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._pixels import check_size, write_png_atomic
-from .mesh import load_mesh
-from .transform import apply_transform
+from meshrec.figures._pixels import check_size, write_png_atomic
+from meshrec.model.mesh import load_mesh
+from meshrec.registration.transform import apply_transform
 
 __all__ = [
     "COLORS",
@@ -301,8 +301,8 @@ def _check_size(size) -> tuple[int, int]:
 
 def _pick_registration(result, model, touch):
     """The registration to show and its touch, from a Recognition or a Registration."""
-    from .recognize import Recognition
-    from .register import Registration
+    from meshrec.recognition.recognize import Recognition
+    from meshrec.registration.register import Registration
 
     if isinstance(result, Recognition):
         touch = result.touch if touch is None else touch
@@ -329,7 +329,7 @@ def _pick_registration(result, model, touch):
         )
     if reg.rejected:
         raise ValueError(f"model {reg.model!r} was rejected by the table lookup: {reg.reason}")
-    from .touch import TouchData
+    from meshrec.io.touch import TouchData
 
     if not isinstance(touch, TouchData):
         raise ValueError(f"touch must be a TouchData, got {type(touch).__name__}")
@@ -352,7 +352,7 @@ def _load_truth(truth, touch, model_name: str):
     """(true curves, true contact) in model coordinates, or ((), None)."""
     if truth is None:
         return (), None
-    from .simulate import SimulatedTouch, _read_truth_file, _truth_point
+    from meshrec.sim.simulate import SimulatedTouch, _read_truth_file, _truth_point
 
     if isinstance(truth, SimulatedTouch):
         name = truth.model
@@ -671,7 +671,10 @@ def _render_scene(scene: _Scene, width: int, height: int) -> Snapshot:
     with tempfile.TemporaryDirectory(prefix="meshrec-render-") as tmp:
         job, out = Path(tmp) / "job.npz", Path(tmp) / "image.npy"
         _save_job(job, scene, K, E, width, height)
-        code = "import sys; from meshrec.viz import _render_child; _render_child(*sys.argv[1:])"
+        code = (
+            "import sys; from meshrec.figures.viz import _render_child; "
+            "_render_child(*sys.argv[1:])"
+        )
         try:
             proc = subprocess.run(
                 [sys.executable, "-c", code, str(job), str(out)],

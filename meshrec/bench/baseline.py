@@ -22,10 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import defaults
-from .objective import mean_distances
-from .touch import TouchData
-from .transform import apply_transform
+from meshrec import defaults
+from meshrec.io.touch import TouchData
+from meshrec.registration.objective import mean_distances
+from meshrec.registration.transform import apply_transform
 
 __all__ = [
     "BASELINE_METHODS",

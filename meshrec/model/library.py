@@ -8,8 +8,8 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from .index import IndexParams, ModelIndex
-from .mesh import MESH_SUFFIXES, is_mesh_file
+from meshrec.model.index import IndexParams, ModelIndex
+from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
 
 #: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed, and
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
@@ -51,7 +51,7 @@ class ModelLibrary:
         """Index every mesh file directly inside ``folder`` (not recursive).
 
         Files are taken in sorted order. A file whose ending is not in
-        :data:`meshrec.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
+        :data:`meshrec.model.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
         file that cannot be loaded, or one whose name (stem) repeats an earlier one, is
         skipped with a warning; hidden files (``.name``) and sub-folders are ignored.
         Nothing is ever written into ``folder`` (the cache lives in ``cache_dir``).
@@ -63,7 +63,7 @@ class ModelLibrary:
         params : IndexParams or None
             Index parameters for every model (``None``: the defaults).
         cache_dir : str or path-like or None
-            The index cache (``None``: :func:`meshrec.cache.default_cache_dir`).
+            The index cache (``None``: :func:`meshrec.model.cache.default_cache_dir`).
         force : bool
             Rebuild every index even if cached.
         progress : callable or None
@@ -250,8 +250,8 @@ class ModelLibrary:
 
 def _bundled_roots() -> tuple[Path, ...]:
     """Where bundled libraries may live: the installed copy first, then the repository's."""
-    here = Path(__file__).resolve().parent
-    return (here / "_bundled_models", here.parent / "models")
+    package = Path(__file__).resolve().parents[1]
+    return (package / "_bundled_models", package.parent / "models")
 
 
 def bundled_models_dir(name: str = "surfaces") -> Path:

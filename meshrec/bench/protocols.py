@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import defaults
-from .paper import PAPER_SURFACES, localisation_error
-from .recognize import recognize
-from .register import StageTimes, refine_pose
-from .simulate import simulate_touch
+from meshrec import defaults
+from meshrec.recognition.recognize import recognize
+from meshrec.registration.register import StageTimes, refine_pose
+from meshrec.sim.paper import PAPER_SURFACES, localisation_error
+from meshrec.sim.simulate import simulate_touch
 
 __all__ = [
     "OBJECT_SIDES",

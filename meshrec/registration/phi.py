@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from . import defaults
+from meshrec import defaults
 
 __all__ = ["PhiSearch", "bracket_minima", "search_phi"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .chart import SurfacePoint, rotation_z
+from meshrec.registration.chart import SurfacePoint, rotation_z
 
 __all__ = ["apply_transform", "invert_transform", "superposition"]
 

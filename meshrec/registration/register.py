@@ -13,16 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import defaults
-from .candidates import find_candidates
-from .chart import SurfacePoint, rotation_z, tangent_frame
-from .geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
-from .objective import mean_distances
-from .phi import search_phi
-from .refine import refine_rigid
-from .search import SEARCH_METHODS, local_search
-from .touch import TouchData
-from .transform import apply_transform, superposition
+from meshrec import defaults
+from meshrec.contact.geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
+from meshrec.io.touch import TouchData
+from meshrec.registration.candidates import find_candidates
+from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
+from meshrec.registration.objective import mean_distances
+from meshrec.registration.phi import search_phi
+from meshrec.registration.refine import refine_rigid
+from meshrec.registration.search import SEARCH_METHODS, local_search
+from meshrec.registration.transform import apply_transform, superposition
 
 __all__ = ["Registration", "StageTimes", "refine_pose", "register", "touch_geometry"]
 
@@ -133,7 +133,7 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
     ------
     ValueError
         If the curves do not allow an estimate (see
-        :func:`meshrec.geometry.estimate_local_geometry`).
+        :func:`meshrec.contact.geometry.estimate_local_geometry`).
 
     Warns
     -----
@@ -207,7 +207,7 @@ def register(
         The local geometry at the contact, if already estimated (``recognize`` shares
         one estimate across models).
     method : {"lm", "steepest"}
-        The local-search optimiser (see :func:`meshrec.search.local_search`).
+        The local-search optimiser (see :func:`meshrec.registration.search.local_search`).
     max_candidates : int
         Most candidates per side after spreading.
     searches : int

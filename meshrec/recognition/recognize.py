@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import defaults
-from .geometry import LocalGeometry
-from .register import Registration, register, touch_geometry
-from .touch import TouchData
+from meshrec import defaults
+from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.touch import TouchData
+from meshrec.registration.register import Registration, register, touch_geometry
 
 __all__ = ["Recognition", "recognize"]
 
@@ -112,7 +112,7 @@ def recognize(
         Called as ``progress(i, n, name)`` before each model is registered.
     geometry : LocalGeometry, optional
         The local geometry at the contact, if already estimated (by
-        :func:`meshrec.register.touch_geometry`); estimated here otherwise.
+        :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
 
     Returns
     -------

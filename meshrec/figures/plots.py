@@ -24,14 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import defaults
-from ._pixels import check_size, write_png_atomic
-from .chart import SurfacePoint, rotation_z, tangent_frame
-from .mesh import load_mesh
-from .objective import mean_distances
-from .phi import bracket_minima, search_phi
-from .register import _phi_grid_errors, _sides, _subsample, touch_geometry
-from .viz import COLORS, VizDependencyError
+from meshrec import defaults
+from meshrec.figures._pixels import check_size, write_png_atomic
+from meshrec.figures.viz import COLORS, VizDependencyError
+from meshrec.model.mesh import load_mesh
+from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
+from meshrec.registration.objective import mean_distances
+from meshrec.registration.phi import bracket_minima, search_phi
+from meshrec.registration.register import _phi_grid_errors, _sides, _subsample, touch_geometry
 
 __all__ = [
     "PhiProfile",
@@ -292,10 +292,10 @@ def phi_profile(
 ) -> PhiProfile:
     """Repeat the registration's phi search at one candidate point, for :func:`phi_figure`.
 
-    The candidates are found as :func:`meshrec.register` finds them (same lookup, same
+    The candidates are found as :func:`meshrec.registration.register` finds them (same lookup, same
     order), the data are placed with their common point on the candidate and their normal
     along the model's, and the error is sampled, bracketed and refined by
-    :func:`meshrec.phi.search_phi`.
+    :func:`meshrec.registration.phi.search_phi`.
 
     Parameters
     ----------
@@ -310,7 +310,7 @@ def phi_profile(
         Angles of the fine curve drawn, at least 36.
     geometry : LocalGeometry, optional
         The local geometry at the contact, if already estimated (as for
-        :func:`meshrec.register`).
+        :func:`meshrec.registration.register`).
 
     Returns
     -------
@@ -323,8 +323,8 @@ def phi_profile(
         model's candidates, the model has no candidate for this touch, or the curves do
         not allow a local-geometry estimate.
     """
-    from .candidates import find_candidates
-    from .touch import TouchData
+    from meshrec.io.touch import TouchData
+    from meshrec.registration.candidates import find_candidates
 
     if not isinstance(touch, TouchData):
         raise ValueError(f"touch must be a TouchData, got {type(touch).__name__}")
@@ -503,7 +503,7 @@ def phi_figure(profile: PhiProfile, path, *, size=(1100, 480)) -> Path:
 def _truth_contact(truth) -> np.ndarray | None:
     if truth is None:
         return None
-    from .simulate import SimulatedTouch, _read_truth_file, _truth_point
+    from meshrec.sim.simulate import SimulatedTouch, _read_truth_file, _truth_point
 
     if isinstance(truth, SimulatedTouch):
         return np.asarray(truth.contact, dtype=np.float64)
@@ -552,7 +552,7 @@ def search_figure(registration, path, *, mesh=None, truth=None, size=(1200, 560)
     VizDependencyError
         If matplotlib cannot be imported.
     """
-    from .register import Registration
+    from meshrec.registration.register import Registration
 
     if not isinstance(registration, Registration):
         raise ValueError(f"registration must be a Registration, got {type(registration).__name__}")
@@ -766,7 +766,7 @@ def _contact_groups(surfaces) -> dict[str, list]:
 
 
 def _default_mesh(name: str):
-    from .library import bundled_models_dir
+    from meshrec.model.library import bundled_models_dir
 
     for lib in ("surfaces", "objects"):
         for candidate in sorted(bundled_models_dir(lib).glob(f"{name}.*")):

@@ -27,8 +27,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from . import defaults
-from .touch import TouchData
+from meshrec import defaults
+from meshrec.io.touch import TouchData
 
 __all__ = ["SimulatedTouch", "simulate_touch"]
 

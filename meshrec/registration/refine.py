@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import defaults
-from .objective import residuals
-from .transform import apply_transform
+from meshrec import defaults
+from meshrec.registration.objective import residuals
+from meshrec.registration.transform import apply_transform
 
 __all__ = ["Refinement", "refine_rigid"]
 

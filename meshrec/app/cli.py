@@ -10,12 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, defaults
-from .library import ModelLibrary, bundled_models_dir
-from .recognize import Recognition, recognize
-from .register import touch_geometry
-from .simulate import simulate_touch
-from .touch import TouchData
+from meshrec import defaults
+from meshrec._version import __version__
+from meshrec.io.touch import TouchData
+from meshrec.model.library import ModelLibrary, bundled_models_dir
+from meshrec.recognition.recognize import Recognition, recognize
+from meshrec.registration.register import touch_geometry
+from meshrec.sim.simulate import simulate_touch
 
 __all__ = ["main", "recognition_to_json"]
 
@@ -308,7 +309,7 @@ def _model_arg(args, library):
 
 def _viz_registration(args, touch, geometry, library):
     """(model index, registration) for ``--model`` or the recognised model."""
-    from .register import register
+    from meshrec.registration.register import register
 
     model = _model_arg(args, library)
     if model is not None:
@@ -323,7 +324,10 @@ def _viz_registration(args, touch, geometry, library):
 
 
 def _run_viz(args) -> int:
-    from . import plots, viz  # they import open3d and matplotlib only when drawing
+    from meshrec.figures import (
+        plots,  # they import open3d and matplotlib only when drawing
+        viz,  # they import open3d and matplotlib only when drawing
+    )
 
     try:
         if args.command == "show":  # fail fast, before any work, without the viz extra

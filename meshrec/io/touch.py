@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import defaults
+from meshrec import defaults
 
 __all__ = ["TouchData"]
 

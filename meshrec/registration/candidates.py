@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import defaults
+from meshrec import defaults
 
 __all__ = ["CandidateSet", "curvature_tolerance", "find_candidates", "spread_points"]
 
@@ -133,7 +133,7 @@ def find_candidates(
     model : ModelIndex
     k1, k2 : float
         Principal curvatures estimated at the contact, for the side being matched (the
-        sign convention of :func:`meshrec.geometry.estimate_local_geometry`).
+        sign convention of :func:`meshrec.contact.geometry.estimate_local_geometry`).
     half_length : float
         Half-length of the data curves; sets the tolerance and the candidates' spacing.
     fit_rms : float

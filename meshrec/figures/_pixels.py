@@ -1,4 +1,7 @@
-"""Picture files shared by :mod:`meshrec.viz` and :mod:`meshrec.plots`: sizes, atomic writes."""
+"""Picture files shared by :mod:`meshrec.figures.viz` and :mod:`meshrec.figures.plots`.
+
+Sizes and atomic writes.
+"""
 
 from __future__ import annotations
 

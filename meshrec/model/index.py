@@ -14,7 +14,7 @@ Two search structures are built when an index is created or loaded (they are not
   region ``d(K s) ~ dH``);
 * a libigl AABB tree over the triangles answering :meth:`ModelIndex.closest_points`.
 
-Everything else is cached on disk (:mod:`meshrec.cache`), keyed by the mesh file's bytes,
+Everything else is cached on disk (:mod:`meshrec.model.cache`), keyed by the mesh file's bytes,
 the parameters and the package version.
 """
 
@@ -35,9 +35,9 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from . import defaults
-from .cache import ArrayCache, CacheWarning, file_sha256, make_key
-from .mesh import check_mesh_path, load_mesh
+from meshrec import defaults
+from meshrec.model.cache import ArrayCache, CacheWarning, file_sha256, make_key
+from meshrec.model.mesh import check_mesh_path, load_mesh
 
 _ARRAYS = (
     "vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid", "edge_bulge"
@@ -444,7 +444,7 @@ class ModelIndex:
         params : IndexParams or None
             ``None``: the defaults.
         cache_dir : str or path-like or None
-            The cache folder; ``None``: :func:`meshrec.cache.default_cache_dir`.
+            The cache folder; ``None``: :func:`meshrec.model.cache.default_cache_dir`.
         force : bool
             Rebuild (and rewrite the cache entry) even if a valid entry exists.
         stage : callable, optional
@@ -461,7 +461,7 @@ class ModelIndex:
         ValueError
             If ``params`` is not an :class:`IndexParams`, or the file is missing, not a
             file, or cannot be loaded as a triangle mesh (see
-            :func:`meshrec.mesh.load_mesh`).
+            :func:`meshrec.model.mesh.load_mesh`).
 
         Warns
         -----

@@ -10,7 +10,7 @@ import trimesh
 from scipy import sparse
 from scipy.sparse import csgraph
 
-from . import defaults
+from meshrec import defaults
 
 #: Faces per chunk of the signed-volume sum (bounds its temporary memory).
 _CHUNK = 1 << 18

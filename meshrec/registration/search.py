@@ -1,8 +1,8 @@
 """Local search over the contact's position on the surface and the rotation phi.
 
 From a candidate point and its initial phi, minimise the registration error
-E(u, v, phi) over a surface chart (see :mod:`meshrec.chart`), re-centring the chart at the
-current point until the contact stops moving. Two methods:
+E(u, v, phi) over a surface chart (see :mod:`meshrec.registration.chart`), re-centring the
+chart at the current point until the contact stops moving. Two methods:
 
 * ``"lm"`` (default): Levenberg-Marquardt least squares (scipy) on the signed
   point-to-surface residuals, with a semi-analytic Jacobian over (u, v, phi).
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from . import defaults
-from .chart import SurfaceChart, SurfacePoint, rotation_z
-from .objective import residuals
+from meshrec import defaults
+from meshrec.registration.chart import SurfaceChart, SurfacePoint, rotation_z
+from meshrec.registration.objective import residuals
 
 __all__ = ["SEARCH_METHODS", "LocalSearch", "local_search"]
 

@@ -1,0 +1,15 @@
+"""Benchmark protocols (the paper's Tables 2 to 4) and the Open3D baselines.
+
+The protocols are importable from here (``meshrec.bench.run_trials``); the baselines, which
+need open3d, from :mod:`meshrec.bench.baseline`.
+"""
+
+from meshrec.bench.protocols import (
+    OBJECT_SIDES,
+    Trial,
+    object_localisation_error,
+    paper_touch,
+    run_trials,
+)
+
+__all__ = ["OBJECT_SIDES", "Trial", "object_localisation_error", "paper_touch", "run_trials"]

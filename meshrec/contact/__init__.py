@@ -1,0 +1,1 @@
+"""Local geometry at the contact, estimated from the touch curves alone."""

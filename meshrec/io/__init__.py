@@ -1,0 +1,1 @@
+"""Input: touch data, its files and the checks every entry point shares."""

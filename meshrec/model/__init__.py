@@ -1,0 +1,1 @@
+"""Models: cleaned meshes, curvature tables, surface queries, the cache, libraries."""

@@ -1,0 +1,1 @@
+"""Recognition over a library: every model registered, then ranked."""

@@ -1,0 +1,1 @@
+"""Registration of touch data onto one model, as a sequence of named stages."""

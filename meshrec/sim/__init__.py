@@ -1,0 +1,1 @@
+"""The simulator: touches sampled from models, and the paper's analytic surfaces."""
