@@ -21,7 +21,7 @@ from meshrec import defaults
 from meshrec.registration.chart import SurfaceChart, SurfacePoint, rotation_z
 from meshrec.registration.objective import residuals
 
-__all__ = ["SEARCH_METHODS", "LocalSearch", "local_search"]
+__all__ = ["SEARCH_METHODS", "LocalSearch", "chart_residuals", "local_search"]
 
 SEARCH_METHODS = ("lm", "steepest")
 
@@ -223,3 +223,53 @@ def _search_steepest(model, local_points, start, phi0, scale) -> LocalSearch:
         path=np.array(path),
         evaluations=evaluations,
     )
+
+
+def chart_residuals(
+    model, local_points: np.ndarray, start: SurfacePoint, x, scale: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local search's residuals at chart coordinates (u, v, phi), and their Jacobian.
+
+    The residuals and the semi-analytic Jacobian that the ``"lm"`` search hands to
+    Levenberg-Marquardt, on the chart centred at ``start`` (for tests and diagnostics).
+
+    Parameters
+    ----------
+    model : ModelIndex
+        The model searched.
+    local_points : (n, 3) float
+        The data points in the data frame (origin at the contact, z along the normal).
+    start : SurfacePoint
+        The chart's centre and frame.
+    x : (3,) float
+        Chart coordinates u, v (model units) and the rotation phi about the normal
+        (radians).
+    scale : float
+        The length that sets the chart's difference step (the curves' half-length), as in
+        :func:`local_search`.
+
+    Returns
+    -------
+    values : (n,) float
+        Signed point-to-surface residuals of the placed points.
+    jacobian : (n, 3) float
+        Their derivatives with respect to (u, v, phi).
+
+    Raises
+    ------
+    ValueError
+        If ``local_points`` is not (n, 3), ``x`` is not three finite numbers, or ``scale``
+        is not positive.
+    """
+    pts = np.asarray(local_points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"local_points must be (n, 3), got {pts.shape}")
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (3,) or not np.isfinite(x).all():
+        raise ValueError(f"x must be three finite numbers (u, v, phi), got {x!r}")
+    if not (np.isfinite(scale) and scale > 0):
+        raise ValueError(f"scale must be positive, got {scale!r}")
+    problem = _ChartResiduals(
+        model, pts, SurfaceChart(model, start), defaults.CHART_FD_STEP * scale
+    )
+    return problem.fun(x).copy(), problem.jac(x)
