@@ -43,9 +43,17 @@ def test_search_phi_refines_to_the_true_minimum():
     res = search_phi(error)
     assert abs(res.phi - true) < 5 * defaults.PHI_XTOL
     assert res.error == pytest.approx(0.2, abs=1e-5)
-    assert res.grid.shape == (defaults.PHI_STEPS,)
-    assert res.minima[0, 0] == res.phi
+    np.testing.assert_allclose(res.grid, np.linspace(0, 2 * np.pi, defaults.PHI_STEPS, False))
+    np.testing.assert_allclose(res.grid_errors, error(res.grid))
     assert calls[0] == defaults.PHI_STEPS
+    # The other local minimum, at true + pi (error 2.2, curvature cos + 1.2 cos 2 = 0.2 > 0),
+    # is more than PHI_REFINE_RATIO times the best: only the true one is refined.
+    assert res.minima.shape == (1, 2)
+    # With a wide ratio both are, best first, each row (phi, error(phi)).
+    both = search_phi(error, refine_ratio=20.0)
+    np.testing.assert_allclose(both.minima[:, 0], [true, true + np.pi - 2 * np.pi], atol=5e-3)
+    np.testing.assert_allclose(both.minima[:, 1], [0.2, 2.2], atol=1e-5)
+    np.testing.assert_allclose(both.minima[:, 1], error(both.minima[:, 0]))
 
 
 def test_search_phi_keeps_all_competitive_minima_best_first():
