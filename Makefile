@@ -1,5 +1,6 @@
-# The README's two commands: `make demo` (the main job) and `make test` (the test suite).
-# Both create ./.venv and install meshrec with what it needs on first use.
+# The README's two commands: `make demo` (the main job) and `make test` (the fast test suite;
+# `make test-all` runs every test, also those marked slow, as CI does).
+# They create ./.venv and install meshrec with what it needs on first use.
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -7,7 +8,7 @@ BIN    := $(VENV)/bin
 OUT    ?= out
 SEED   ?= 24
 
-.PHONY: install demo test lint clean
+.PHONY: install demo test test-all lint clean
 
 $(BIN)/.meshrec-installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +26,12 @@ demo: install
 		--truth $(OUT)/truth.json --seed $(SEED)
 	$(BIN)/meshrec recognize $(OUT)/touch.csv --models models/surfaces
 
-## test: lint and run the test suite
+## test: lint and run the test suite without the tests marked slow (well under two minutes)
 test: install lint
+	$(BIN)/python -m pytest -q -m "not slow"
+
+## test-all: lint and run every test, the slow ones too (what CI runs)
+test-all: install lint
 	$(BIN)/python -m pytest -q
 
 lint: install

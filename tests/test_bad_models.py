@@ -217,15 +217,18 @@ def assert_index_error(proc, pattern: str) -> None:
     assert_one_line_error(rest, pattern)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", CLI_BROKEN)
 def test_cli_index_of_a_broken_model_exits_2_with_one_line(cli_runs, name):
     assert_index_error(cli_runs[name], "no loadable mesh in .*" + BROKEN[name][2])
 
 
+@pytest.mark.slow
 def test_cli_index_of_an_empty_folder(cli_runs):
     assert_one_line_error(cli_runs["empty"], r"empty' holds no mesh file")
 
 
+@pytest.mark.slow
 def test_cli_index_skips_bad_files_with_warnings(cli_runs):
     proc = cli_runs["mixed"]
     assert proc.returncode == 0, proc.stderr

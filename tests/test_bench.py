@@ -103,6 +103,7 @@ def test_refine_pose_errors(surfaces):
         meshrec.refine_pose(sim.touch, surfaces["ellipsoid"], scaled)
 
 
+@pytest.mark.slow
 def test_baseline_multistart_registers_a_touch(surfaces):
     pytest.importorskip("open3d")
     from meshrec.bench import baseline

@@ -216,6 +216,7 @@ def test_interrupted_write_never_shows_under_final_name(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_concurrent_writers_of_one_key_both_succeed(tmp_path):
     script = textwrap.dedent(
         f"""

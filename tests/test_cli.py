@@ -105,6 +105,7 @@ def simulated(tmp_path_factory, env):
     return folder
 
 
+@pytest.mark.slow
 def test_recognize_json_matches_the_schema_and_the_truth(simulated, env):
     proc = _run(["recognize", "touch.csv", "--json"], env, simulated)
     assert proc.returncode == 0, proc.stderr
@@ -122,6 +123,7 @@ def test_recognize_json_matches_the_schema_and_the_truth(simulated, env):
     assert all(r["contact"] is None and r["transform"] is None for r in rejected)
 
 
+@pytest.mark.slow
 def test_recognize_table_with_hints_and_top(simulated, env):
     truth = json.loads((simulated / "truth.json").read_text())
     c = ",".join(str(v) for v in truth["contact_touch"])
@@ -132,6 +134,7 @@ def test_recognize_table_with_hints_and_top(simulated, env):
     assert len([ln for ln in lines if ln.strip()[:1].isdigit()]) == 2
 
 
+@pytest.mark.slow
 def test_index_reports_progress_and_caches(env, tmp_path):
     first = _run(["index", "--models", str(MODELS / "surfaces")], env, tmp_path)
     assert first.returncode == 0, first.stderr

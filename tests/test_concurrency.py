@@ -57,6 +57,7 @@ def _how(stdout: str) -> dict:
     return out
 
 
+@pytest.mark.slow
 def test_two_concurrent_index_runs_leave_a_cache_a_third_run_accepts(tmp_path):
     models = _models(tmp_path / "models")
     before = _snapshot(models)
@@ -93,6 +94,7 @@ def test_two_concurrent_index_runs_leave_a_cache_a_third_run_accepts(tmp_path):
     assert _snapshot(models) == before
 
 
+@pytest.mark.slow
 def test_the_model_folder_is_never_written(tmp_path):
     # What a read-only model folder needs: nothing is created, changed or removed in it,
     # whatever the command (root ignores the mode bits, so this checks the folder itself).
@@ -140,6 +142,7 @@ def test_read_only_model_folder(tmp_path):
             p.chmod(0o755)
 
 
+@pytest.mark.slow
 def test_corrupt_or_truncated_cache_is_rebuilt_with_a_warning(tmp_path):
     models = _models(tmp_path / "models")
     cache = tmp_path / "cache"

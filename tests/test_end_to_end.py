@@ -53,6 +53,7 @@ def _object_touch(model, seed):
     )
 
 
+@pytest.mark.slow
 def test_bundled_libraries_hold_the_papers_shapes(surfaces, objects):
     assert set(surfaces.names) == set(meshrec.PAPER_SURFACES)
     assert set(objects.names) == {"cylinder_1", "cylinder_2", "elliptic_cylinder", "sphere"}
@@ -72,6 +73,7 @@ def test_paper_surface_recognised_and_localised(surfaces, name, seed):
     assert rec.best.error < 0.75 * defaults.SIM_NOISE
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cylinder_1", "cylinder_2", "elliptic_cylinder", "sphere"])
 @pytest.mark.parametrize("seed", [3, 4])
 def test_experiment_object_recognised(objects, name, seed):
@@ -104,6 +106,7 @@ def test_transform_maps_the_touch_onto_the_truth(surfaces):
     assert best < 0.05
 
 
+@pytest.mark.slow
 def test_recognition_is_invariant_to_a_rigid_motion_of_the_touch(surfaces):
     sim = meshrec.simulate_touch(surfaces["elliptic_paraboloid"], rng=5)
     first = meshrec.recognize(sim.touch, surfaces)
@@ -131,6 +134,7 @@ def test_steepest_descent_reference_agrees_with_the_default(surfaces):
     assert paper.error == pytest.approx(fast.error, rel=0.1)
 
 
+@pytest.mark.slow
 def test_a_model_without_candidates_is_rejected_with_its_reason(objects):
     # A touch on the sphere has K = 1/33^2 mm^-2; the circular cylinders' sides have K = 0
     # and their caps H = 0: the lookup finds nothing on them and says so.

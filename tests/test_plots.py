@@ -155,6 +155,7 @@ def test_missing_matplotlib_names_the_package(monkeypatch):
         plots.check_matplotlib()
 
 
+@pytest.mark.slow
 def test_cli_plot_phi_and_search(setup, tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("MESHREC_CACHE_DIR", str(setup.cache))
     touch = str(setup.files / "touch.csv")

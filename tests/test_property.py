@@ -248,6 +248,7 @@ _OPS = st.tuples(
 )
 
 
+@pytest.mark.slow
 @settings(derandomize=True, database=None, max_examples=20, deadline=None)
 @given(ops=st.lists(_OPS, min_size=1, max_size=3))
 def test_spoiled_good_touch_then_recognised(world, ops):

@@ -86,6 +86,7 @@ def test_curve_colours_near_projected_contact(setup, snapshot):
     assert _near(img, (0, 0), viz.COLORS["registered"], radius=20) == 0
 
 
+@pytest.mark.slow
 def test_render_without_path_returns_image_only(setup):
     snap = viz.render(setup.rec.best, touch=setup.sim.touch, size=(64, 48), view="model")
     assert snap.path is None
@@ -95,6 +96,7 @@ def test_render_without_path_returns_image_only(setup):
     assert 0 <= xy[1] < 48
 
 
+@pytest.mark.slow
 def test_many_sizes_in_one_process_then_a_clean_exit(setup, tmp_path):
     # open3d 0.20 aborts a process that destroys a second OffscreenRenderer and hangs on
     # a third: each picture is drawn in a child process, so a caller may render many
@@ -125,6 +127,7 @@ def test_render_child_failure_and_timeout_raise_render_error(setup, monkeypatch)
         viz.render(setup.rec, size=(32, 24))
 
 
+@pytest.mark.slow
 def test_cli_show_screenshot(setup, tmp_path, capsys):
     out = tmp_path / "shots" / "show.png"
     code = main(
@@ -226,6 +229,7 @@ def test_render_rejects_rejected_models(setup):
         viz.render(none_recognised)
 
 
+@pytest.mark.slow
 def test_truth_for_another_model_warns(setup):
     truth = dict(setup.sim.truth_dict(), model="banana")
     with pytest.warns(UserWarning, match="truth is for model 'banana'"):
