@@ -200,6 +200,30 @@ TOUCH_MIN_EXTENT = 1e-9
 #: unit mismatch. Simulated touches measure about 0.3 sqrt(area); millimetres against
 #: metres make it 300 or 0.0003.
 UNIT_MISMATCH_RATIO = 100.0
+#: Most curves in a touch (a probe traces three; the pairwise checks of the curves cost
+#: the square of their number).
+MAX_CURVES = 16
+#: Most points per curve, and in a whole touch. A probe samples tens to hundreds per
+#: curve. Reading, checking and the common-point search are O(n log n) (three curves of
+#: 100,000 points: 0.3 s for the common-point search), but the registration scores every
+#: point, so the recognition's time grows with them: three curves of 10,001 points on the
+#: bundled surfaces took 10.2 s for `meshrec recognize` (8.1 s in recognition), of 99,999
+#: points 60 s (measured on the shared 2-core machine).
+MAX_POINTS_PER_CURVE = 10_000
+MAX_TOUCH_POINTS = 30_000
+#: Largest touch file read, bytes: 30,000 CSV rows of full-precision floats take about
+#: 2 MB, the same points in JSON about as much; the rest is room for whitespace.
+TOUCH_MAX_FILE_BYTES = 8 * 1024 * 1024
+#: Largest truth file read, bytes (one is about 1.3 kB).
+TRUTH_MAX_BYTES = 1024 * 1024
+#: A transform read from a file is rigid if R^T R is the identity and its last row is
+#: (0, 0, 0, 1) within this (rounded JSON of a rotation is exact to 1e-15).
+RIGID_TOLERANCE = 1e-6
+#: Largest simulated noise half-width, as a fraction of sqrt(surface area) of the model
+#: (beyond it the curves are noise; 1e308 overflows the random draw).
+SIM_MAX_NOISE_FRACTION = 1.0
+#: Most points per simulated curve (odd, within MAX_POINTS_PER_CURVE: what readers accept).
+SIM_MAX_POINTS = 9_999
 #: Mesh vertices closer than this fraction of the mesh's bounding-box diagonal are merged
 #: (STL stores every face's corners separately; like trimesh's absolute 1e-8 on a unit
 #: model); relative, so that meshes in any unit merge alike (an absolute tolerance
