@@ -202,4 +202,4 @@ def test_json_file_is_plain_json(tmp_path):
     data = json.loads(path.read_text())
     assert set(data) == {"curves"}
     assert len(data["curves"]) == 3
-    assert not list(tmp_path.glob(".*.tmp"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]  # no temporary file left

@@ -38,7 +38,8 @@ def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
         The destination; its folder is created if missing.
     content : str or bytes or callable
         Text (written as UTF-8), bytes, or a function ``write(tmp_name)`` that writes the
-        file itself (a picture library's ``savefig``, for instance).
+        file itself (a picture library's ``savefig``, for instance); ``tmp_name`` ends in
+        the suffix of ``path``.
 
     Returns
     -------
@@ -57,7 +58,10 @@ def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
         raise TypeError(f"content must be str, bytes or callable, got {type(content).__name__}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    # the temporary name keeps the suffix: picture writers choose the format by it
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent
+    )
     try:
         if callable(content):
             os.close(fd)
