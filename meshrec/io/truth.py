@@ -99,8 +99,9 @@ class Truth:
         object.__setattr__(self, "T_touch_model", _frozen(inverse))
         if self.normal is not None:
             normal = check_vector(self.normal, "normal", nonzero=True)
-            if abs(float(np.linalg.norm(normal)) - 1.0) > 1e-12:  # keep a unit one's bits
-                normal = check_vector(normal, "normal", unit=True)
+            unit = check_vector(normal, "normal", unit=True)
+            if not np.allclose(unit, normal, rtol=0.0, atol=1e-12):  # keep a unit one's bits
+                normal = unit
             object.__setattr__(self, "normal", _frozen(normal))
         for key in ("noise", "length"):
             if getattr(self, key) is not None:
