@@ -20,7 +20,9 @@ import numpy as np
 from meshrec import defaults
 
 __all__ = [
+    "check_choice",
     "check_curves",
+    "check_instance",
     "check_int",
     "check_number",
     "check_points",
@@ -92,6 +94,63 @@ def _kind(value) -> str:
     if isinstance(value, np.ndarray):
         return f"{value.dtype} array"
     return type(value).__name__
+
+
+def check_instance(value, types, name: str, *, optional: bool = False):
+    """Return ``value`` if it is an instance of ``types`` (or None when ``optional``).
+
+    Parameters
+    ----------
+    value : object
+    types : type or tuple of type
+    name : str
+        The argument's name, for messages.
+    optional : bool
+        Accept None.
+
+    Returns
+    -------
+    object
+        ``value``.
+
+    Raises
+    ------
+    TypeError
+        Naming the argument, the expected and the actual type.
+    """
+    if (optional and value is None) or isinstance(value, types):
+        return value
+    expected = types if isinstance(types, tuple) else (types,)
+    wanted = " or ".join(t.__name__ for t in expected) + (" or None" if optional else "")
+    raise TypeError(f"{name} must be a {wanted}, got {_kind(value)}")
+
+
+def check_choice(value, choices, name: str) -> str:
+    """Return ``value`` if it is one of the strings ``choices``.
+
+    Parameters
+    ----------
+    value : str
+    choices : sequence of str
+    name : str
+        The argument's name, for messages.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    TypeError
+        If ``value`` is not a string.
+    ValueError
+        If it is not one of ``choices``.
+    """
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be one of {tuple(choices)}, got {_kind(value)}")
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {tuple(choices)}, got {one_line(value)!r}")
+    return value
 
 
 def check_number(
