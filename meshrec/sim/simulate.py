@@ -561,6 +561,13 @@ def _section_curve(
 ) -> tuple[np.ndarray | None, str | None]:
     """Sample the section curve through ``c`` of the mesh and a plane through ``c``.
 
+    trimesh cuts the faces (``trimesh.intersections.mesh_plane``); the segments are
+    chained into the curve through ``c`` here, by hand, because trimesh's own chaining
+    (``Trimesh.section``, a Path3D) needs networkx, which meshrec does not depend on, and
+    its polylines (``Path3D.discrete``) hold only closed loops: an open section, on an
+    open patch, is left as "dangling" entities. Cutting and chaining three curves takes
+    12 ms on the bundled ellipsoid (81,920 faces).
+
     Parameters
     ----------
     surface : _Surface
