@@ -204,20 +204,23 @@ UNIT_MISMATCH_RATIO = 100.0
 #: the square of their number).
 MAX_CURVES = 16
 #: Most points per curve, and in a whole touch. A probe samples tens to hundreds per
-#: curve. Reading, checking and the common-point search are O(n log n) (three curves of
-#: 100,000 points: 0.3 s for the common-point search), but the registration scores every
-#: point, so the recognition's time grows with them: three curves of 10,001 points on the
-#: bundled surfaces took 10.2 s for `meshrec recognize` (8.1 s in recognition), of 99,999
-#: points 60 s (measured on the shared 2-core machine).
+#: curve. Reading, checking and the common-point search are O(n log n); the registration
+#: scores every point, so the recognition's time grows with them. Measured at the limit
+#: (3 curves of 9,999 points on the bundled ellipsoid, the shared 2-core machine): reading
+#: the CSV 0.20 s (JSON 0.05 s), the local geometry 0.09 s, `meshrec recognize` on the
+#: bundled surfaces 10.1 s in all (8.4 s recognising); 3 curves of 99,999 points took 60 s.
 MAX_POINTS_PER_CURVE = 10_000
 MAX_TOUCH_POINTS = 30_000
-#: Largest touch file read, bytes: 30,000 CSV rows of full-precision floats take about
-#: 2 MB, the same points in JSON about as much; the rest is room for whitespace.
+#: Largest touch file read, bytes: 30,000 points take 1.8 MB as CSV or JSON (full
+#: precision); the rest is room for whitespace. A file over it is refused before it is
+#: read, and a CSV of more rows than MAX_TOUCH_POINTS as soon as they are counted
+#: (8 MB of rows: 0.05 s).
 TOUCH_MAX_FILE_BYTES = 8 * 1024 * 1024
 #: Largest truth file read, bytes (one is about 1.3 kB).
 TRUTH_MAX_BYTES = 1024 * 1024
 #: A transform read from a file is rigid if R^T R is the identity and its last row is
-#: (0, 0, 0, 1) within this (rounded JSON of a rotation is exact to 1e-15).
+#: (0, 0, 0, 1) within this (meshrec writes floats that read back exactly; this leaves
+#: room for a rotation written by hand with 7 significant digits).
 RIGID_TOLERANCE = 1e-6
 #: Largest simulated noise half-width, as a fraction of sqrt(surface area) of the model
 #: (beyond it the curves are noise; 1e308 overflows the random draw).
