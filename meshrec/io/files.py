@@ -1,9 +1,10 @@
 """Files: one atomic writer for everything meshrec writes, and a bounded text reader.
 
 :func:`write_atomic` writes through a temporary file in the destination's folder, flushed
-to disk and renamed over the destination, so that a reader never sees half a file and an
-interrupted write leaves the old file (or none). The file gets the mode ``open()`` would
-give it (0666 less the umask), not the temporary file's 0600.
+to disk and renamed over the destination (and the folder flushed too), so that a reader
+never sees half a file and an interrupted write leaves the old file (or none). The file
+gets the mode ``open()`` would give it (0666 less the umask), not the temporary file's
+0600.
 
 :func:`read_text` reads a text file of bounded size, refusing folders, pipes, binary and
 non-UTF-8 content with a one-line ``ValueError`` that names the file.
@@ -80,7 +81,20 @@ def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+    _fsync_dir(path.parent)
     return path
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Flush a folder's entries after a rename (best effort: POSIX only, errors ignored)."""
+    if os.name != "posix":
+        return
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def read_text(path, *, what: str, max_bytes: int) -> str:
