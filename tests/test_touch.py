@@ -1,6 +1,7 @@
 """Tests for meshrec.io.touch: reading, writing and validating touch data."""
 
 import json
+import os
 import warnings
 
 import numpy as np
@@ -203,3 +204,23 @@ def test_json_file_is_plain_json(tmp_path):
     assert set(data) == {"curves"}
     assert len(data["curves"]) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]  # no temporary file left
+
+
+def test_paths_must_be_paths(tmp_path):
+    touch = TouchData(curves=_curves())
+    for call in (TouchData.from_file, TouchData.from_csv, TouchData.from_json, touch.to_file):
+        with pytest.raises(TypeError, match=r"path must be a str or os\.PathLike, got int"):
+            call(3)
+    with pytest.raises(TypeError, match=r"T must hold real numbers, got a complex128"):
+        touch.transformed(np.eye(4, dtype=complex))
+
+
+def test_written_files_follow_the_umask(tmp_path):
+    previous = os.umask(0o077)
+    try:
+        TouchData(curves=_curves()).to_file(tmp_path / "private.csv")
+    finally:
+        os.umask(previous)
+    TouchData(curves=_curves()).to_file(tmp_path / "shared.json")
+    assert (tmp_path / "private.csv").stat().st_mode & 0o777 == 0o600
+    assert (tmp_path / "shared.json").stat().st_mode & 0o777 == 0o666 & ~previous
