@@ -445,8 +445,13 @@ def find_common_point(curves) -> CommonPoint:
 
     Raises
     ------
+    TypeError
+        If ``curves`` is not a sequence of arrays or a curve is not real numbers (complex,
+        bool, strings; see :mod:`meshrec.io.checks`).
     ValueError
-        If ``curves`` is not a sequence of enough (n, 3) finite arrays with enough points,
+        If ``curves`` is not a sequence of ``defaults.MIN_CURVES`` to
+        ``defaults.MAX_CURVES`` (n, 3) finite arrays with ``defaults.MIN_POINTS_PER_CURVE``
+        to ``defaults.MAX_POINTS_PER_CURVE`` points (``defaults.MAX_TOUCH_POINTS`` in all),
         if a curve has all its points equal, coordinates beyond
         ``defaults.TOUCH_MAX_COORDINATE`` or too small an extent, duplicate points (fewer
         than ``defaults.MIN_POINTS_PER_CURVE`` distinct ones, or a return to an earlier
@@ -641,8 +646,14 @@ def estimate_local_geometry(
 
     Raises
     ------
+    TypeError
+        If ``curves`` is not a sequence of arrays or a curve is not real numbers (complex,
+        bool, strings), or ``point``, ``normal`` or ``degree`` has the wrong type (see
+        :mod:`meshrec.io.checks`).
     ValueError
-        If ``curves`` is not a sequence of enough (n, 3) finite arrays with enough points,
+        If ``curves`` is not a sequence of ``defaults.MIN_CURVES`` to
+        ``defaults.MAX_CURVES`` (n, 3) finite arrays with ``defaults.MIN_POINTS_PER_CURVE``
+        to ``defaults.MAX_POINTS_PER_CURVE`` points (``defaults.MAX_TOUCH_POINTS`` in all),
         if a curve has all its points equal, coordinates beyond
         ``defaults.TOUCH_MAX_COORDINATE`` or too small an extent, duplicate points (fewer
         than ``defaults.MIN_POINTS_PER_CURVE`` distinct ones, or a return to an earlier
