@@ -212,9 +212,10 @@ def simulate_touch(
         Randomness, through :func:`numpy.random.default_rng`. With None a fresh seed is
         drawn and recorded in the result, so every touch can be reproduced.
     n_points : int
-        Points per curve, odd and at least 5.
+        Points per curve, odd, at least 5 and at most ``defaults.SIM_MAX_POINTS``.
     noise : float
-        Half-width of the uniform noise per coordinate, model units, >= 0.
+        Half-width of the uniform noise per coordinate, model units, >= 0 and at most
+        ``defaults.SIM_MAX_NOISE_FRACTION * sqrt(mesh area)``.
     length : float, optional
         Arc length of each curve, model units. Default
         ``defaults.SIM_LENGTH_FRACTION * sqrt(mesh area)``.
@@ -231,17 +232,23 @@ def simulate_touch(
 
     Raises
     ------
+    TypeError
+        If ``mesh`` is neither a mesh, a path nor an object with vertices and faces (real
+        (V, 3) vertices, integer faces), or ``n_points`` is not an integer, ``noise`` or
+        ``length`` not a real number, ``contact`` not real numbers, ``rng`` neither a
+        Generator, an integer nor None, ``transform`` not a bool or ``name`` not a str
+        (the shared checks of :mod:`meshrec.io.checks`).
     ValueError
-        If ``n_points`` is not an odd integer >= 5, ``noise`` is negative or not finite,
-        ``length`` is not positive and finite, ``contact`` is not a finite (3,) vector or
-        lies farther than ``defaults.SIM_CONTACT_TOLERANCE * sqrt(area)`` from the mesh,
-        ``rng`` is a negative integer, the mesh file does not exist or the mesh has no
+        If ``n_points`` is not odd or not in 5..``defaults.SIM_MAX_POINTS``, ``noise`` is
+        negative, not finite or more than ``defaults.SIM_MAX_NOISE_FRACTION *
+        sqrt(area)``, ``length`` is not positive and finite, ``contact`` is not a finite
+        (3,) vector or lies farther than ``defaults.SIM_CONTACT_TOLERANCE * sqrt(area)``
+        from the mesh, ``rng`` is a negative integer, the mesh file does not exist or is
+        not a readable triangle mesh, the faces index missing vertices, the mesh has no
         area, the curves through a given contact are too short for ``length`` (near an
         open boundary, or a closed section shorter than ``length``) for every one of
         ``defaults.SIM_CONTACT_PLANE_TRIES`` plane triples, or no random contact out of
         ``defaults.SIM_MAX_TRIES`` admits curves of that length.
-    TypeError
-        If ``mesh`` is neither a mesh, a path nor an object with vertices and faces.
     """
     n_points = _check_n_points(n_points)
     noise = check_number(noise, "noise", minimum=0.0)
