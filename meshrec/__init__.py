@@ -23,6 +23,7 @@ from meshrec.contact.geometry import (
     find_common_point,
 )
 from meshrec.io.touch import TouchData
+from meshrec.io.truth import Truth, read_truth, write_truth
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.library import ModelLibrary, bundled_models_dir
 from meshrec.model.mesh import load_mesh
@@ -45,6 +46,7 @@ __all__ = [
     "SimulatedTouch",
     "StageTimes",
     "TouchData",
+    "Truth",
     "__version__",
     "bundled_models_dir",
     "curvature_tolerance",
@@ -52,9 +54,11 @@ __all__ = [
     "find_common_point",
     "load_mesh",
     "localisation_error",
+    "read_truth",
     "recognize",
     "refine_pose",
     "register",
     "simulate_touch",
     "symmetry_rotations",
+    "write_truth",
 ]

@@ -200,6 +200,33 @@ TOUCH_MIN_EXTENT = 1e-9
 #: unit mismatch. Simulated touches measure about 0.3 sqrt(area); millimetres against
 #: metres make it 300 or 0.0003.
 UNIT_MISMATCH_RATIO = 100.0
+#: Most curves in a touch (a probe traces three; the pairwise checks of the curves cost
+#: the square of their number).
+MAX_CURVES = 16
+#: Most points per curve, and in a whole touch. A probe samples tens to hundreds per
+#: curve. Reading, checking and the common-point search are O(n log n); the registration
+#: scores every point, so the recognition's time grows with them. Measured at the limit
+#: (3 curves of 9,999 points on the bundled ellipsoid, the shared 2-core machine): reading
+#: the CSV 0.20 s (JSON 0.05 s), the local geometry 0.09 s, `meshrec recognize` on the
+#: bundled surfaces 10.1 s in all (8.4 s recognising); 3 curves of 99,999 points took 60 s.
+MAX_POINTS_PER_CURVE = 10_000
+MAX_TOUCH_POINTS = 30_000
+#: Largest touch file read, bytes: 30,000 points take 1.8 MB as CSV or JSON (full
+#: precision); the rest is room for whitespace. A file over it is refused before it is
+#: read, and a CSV of more rows than MAX_TOUCH_POINTS as soon as they are counted
+#: (8 MB of rows: 0.05 s).
+TOUCH_MAX_FILE_BYTES = 8 * 1024 * 1024
+#: Largest truth file read, bytes (one is about 1.3 kB).
+TRUTH_MAX_BYTES = 1024 * 1024
+#: A transform read from a file is rigid if R^T R is the identity and its last row is
+#: (0, 0, 0, 1) within this (meshrec writes floats that read back exactly; this leaves
+#: room for a rotation written by hand with 7 significant digits).
+RIGID_TOLERANCE = 1e-6
+#: Largest simulated noise half-width, as a fraction of sqrt(surface area) of the model
+#: (beyond it the curves are noise; 1e308 overflows the random draw).
+SIM_MAX_NOISE_FRACTION = 1.0
+#: Most points per simulated curve (odd, within MAX_POINTS_PER_CURVE: what readers accept).
+SIM_MAX_POINTS = 9_999
 #: Mesh vertices closer than this fraction of the mesh's bounding-box diagonal are merged
 #: (STL stores every face's corners separately; like trimesh's absolute 1e-8 on a unit
 #: model); relative, so that meshes in any unit merge alike (an absolute tolerance

@@ -231,6 +231,38 @@ CASES = {
         r"is \d+(\.\d+)? times larger than the nearest-sized model 'ball'.*"
         r"likely a unit mismatch \(mm vs m\?\)",
     ),
+    # hostile input (issue 15): numbers beyond a float, sizes beyond the limits, file names
+    # that would break the one-line message
+    "json_huge_integer": Case(
+        lambda f, g, s: _text(f / "huge.json", '{"curves": [[[1' + "0" * 400 + ", 0, 0]]]}"),
+        r"huge\.json: curves\[0\]\[0\] holds an integer too large for a float \(401 digits\)",
+    ),
+    "too_many_rows": Case(
+        lambda f, g, s: write_csv(
+            f / "rows.csv", [np.zeros((defaults.MAX_TOUCH_POINTS // 3 + 1, 3))] * 3
+        ),
+        rf"rows\.csv: more than {defaults.MAX_TOUCH_POINTS} points \(defaults\.MAX_TOUCH_POINTS\)",
+    ),
+    "too_many_points_per_curve": Case(
+        lambda f, g, s: write_csv(
+            f / "long.csv",
+            [np.zeros((defaults.MAX_POINTS_PER_CURVE + 1, 3)), g.curves[1], g.curves[2]],
+        ),
+        rf"curves\[0\] must have at most {defaults.MAX_POINTS_PER_CURVE} points",
+        cli=False,
+    ),
+    "file_too_large": Case(
+        lambda f, g, s: _bytes(
+            f / "large.json", b" " * defaults.TOUCH_MAX_FILE_BYTES + b'{"curves": []}'
+        ),
+        rf"large\.json: {defaults.TOUCH_MAX_FILE_BYTES + 14} bytes, larger than the limit",
+    ),
+    "newline_in_name": Case(
+        lambda f, g, s: _text(f / "two\nlines.csv", ""), r"two\\nlines\.csv: empty"
+    ),
+    "bytes_not_utf8_in_name": Case(
+        lambda f, g, s: _text(f / os.fsdecode(b"caf\xe9.csv"), ""), r"caf\\xe9\.csv: empty"
+    ),
     "metres": Case(
         lambda f, g, s: write_csv(f / "m.csv", [c / 1000.0 for c in g.curves]),
         r"times smaller than the nearest-sized model 'ball'.*likely a unit mismatch \(mm vs m\?\)",
@@ -296,6 +328,24 @@ def setup(tmp_path_factory) -> Setup:
     (folder / "outdir.csv").mkdir()  # an output file that cannot be written
     out = str(folder / "outdir.csv")
     argv["unwritable_output"] = ["simulate", str(models / "ball.stl"), "-o", out]
+    # the simulator's hostile input, and a huge normal that is only a direction
+    (folder / "notes.txt").write_text("not a mesh\n")
+    (folder / "bad\nname.stl").write_text("solid nothing\n")
+    sim_out = str(folder / "sim.csv")
+    argv["simulate_not_a_mesh"] = ["simulate", str(folder / "notes.txt"), "-o", sim_out]
+    argv["simulate_bad_name"] = ["simulate", str(folder / "bad\nname.stl"), "-o", sim_out]
+    argv["simulate_missing_name"] = ["simulate", "no\nsuch", "-o", sim_out]
+    argv["simulate_huge_noise"] = ["simulate", str(models / "ball.stl"), "-o", sim_out]
+    argv["simulate_huge_noise"] += ["--noise", "1e308"]
+    argv["simulate_huge_points"] = [*argv["simulate_not_a_mesh"][:1], str(models / "ball.stl")]
+    argv["simulate_huge_points"] += ["-o", sim_out, "--points", str(10**9 + 1)]
+    sim.write(folder / "good.csv")
+    good = str(folder / "good.csv")
+    huge = ",".join(repr(float(v)) for v in 1e308 * sim.normal_touch)  # the true side
+    argv["normal_huge"] = ["recognize", good, "--models", str(models), "--normal", huge]
+    argv["normal_overflow"] = ["recognize", good, "--models", str(models), "--normal", "1e309,0,0"]
+    argv["simulate_ok"] = ["simulate", str(models / "ball.stl"), "-o", str(folder / "s" / "t.csv")]
+    argv["simulate_ok"] += ["--seed", "3"]
     with ThreadPoolExecutor(max_workers=3) as pool:
         futures = {name: pool.submit(run_cli, a, env, root) for name, a in argv.items()}
         cli = {name: f.result() for name, f in futures.items()}
@@ -327,6 +377,46 @@ def test_cli_one_line_exit_2(setup, name):
 
 def test_cli_output_that_cannot_be_written(setup):
     assert_one_line_error(setup.cli["unwritable_output"], r"outdir\.csv: Is a directory$")
+
+
+@pytest.mark.parametrize(
+    ("name", "pattern"),
+    [
+        ("simulate_not_a_mesh", r"notes\.txt: not a readable mesh \(NotImplementedError: "),
+        ("simulate_bad_name", r"bad\\nname\.stl: "),
+        ("simulate_missing_name", r"model_file no\\nsuch: no such file"),
+        (
+            "simulate_huge_noise",
+            r"noise must be at most 1\.0 \* sqrt\(area\) = [\d.]+ .*got 1e\+308",
+        ),
+        ("simulate_huge_points", r"n_points must be <= 9999, got 1000000001"),
+        (
+            "normal_overflow",
+            r"argument --normal: expected three finite numbers X,Y,Z, got '1e309,0,0'",
+        ),
+    ],
+)
+def test_cli_hostile_input_one_line_exit_2(setup, name, pattern):
+    assert_one_line_error(setup.cli[name], pattern)
+
+
+def test_cli_huge_normal_is_a_direction(setup):
+    # (1e308)^2 overflows: it used to print an overflow warning and then an error
+    proc = setup.cli["normal_huge"]
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert "recognised: ball" in proc.stdout
+
+
+def test_cli_simulate_writes_the_truth_only_where_asked_with_the_umask_mode(setup):
+    proc = setup.cli["simulate_ok"]
+    assert proc.returncode == 0, proc.stderr
+    assert "no truth file (use --truth)" in proc.stdout
+    folder = setup.folder / "touches" / "s"
+    assert sorted(p.name for p in folder.iterdir()) == ["t.csv"]
+    umask = os.umask(0o022)
+    os.umask(umask)  # the subprocess inherited this umask
+    assert (folder / "t.csv").stat().st_mode & 0o777 == 0o666 & ~umask
 
 
 def test_curves_that_miss_report_how_far_apart(setup):

@@ -70,3 +70,35 @@ def test_unknown_surface(call):
 def test_implicit_distance_shape_error():
     with pytest.raises(ValueError, match=r"points must be \(n, 3\), got \(3,\)"):
         implicit_distance("ellipsoid", np.zeros(3))
+
+
+@pytest.mark.parametrize(
+    ("call", "error", "match"),
+    [
+        (lambda: symmetry_rotations(3), TypeError, "name must be one of .* got int"),
+        (lambda: implicit_distance("ellipsoid", "xyz"), TypeError, "points must be an array"),
+        (
+            lambda: implicit_distance("ellipsoid", np.zeros((2, 3), dtype=complex)),
+            TypeError,
+            "points must hold real numbers",
+        ),
+        (
+            lambda: implicit_distance("ellipsoid", [[0.0, np.nan, 0.0]]),
+            ValueError,
+            "points has a non-finite point at row 0",
+        ),
+        (
+            lambda: localisation_error("ellipsoid", [0, 0], np.zeros(3)),
+            ValueError,
+            r"true_contact must be \(3,\), got \(2,\)",
+        ),
+        (
+            lambda: localisation_error("ellipsoid", np.zeros(3), None),
+            TypeError,
+            "found_contact must be an array of real numbers",
+        ),
+    ],
+)
+def test_argument_checks(call, error, match):
+    with pytest.raises(error, match=match):
+        call()

@@ -12,9 +12,17 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 from test_bad_touch import write_csv
 
-from meshrec import ModelLibrary, TouchData, estimate_local_geometry, recognize, simulate_touch
+from meshrec import (
+    ModelLibrary,
+    TouchData,
+    estimate_local_geometry,
+    find_common_point,
+    recognize,
+    simulate_touch,
+)
 
 _counter = itertools.count()
 
@@ -267,3 +275,168 @@ def test_the_unspoiled_touch_is_recognised(world):
     path = _path(world, ".csv")
     write_csv(path, world["touch"].curves)
     assert _check(path, world["library"]) == "ok"
+
+
+# ----------------------------------------------------------------------------- the Python API
+_SCALARS = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.integers(10**300, 10**400),
+    st.floats(),
+    st.complex_numbers(),
+    st.text(max_size=4),
+    st.binary(max_size=4),
+)
+_ARRAYS = hnp.arrays(
+    dtype=st.sampled_from([np.float64, np.float32, np.int64, np.complex128, np.bool_, "U2"]),
+    shape=hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=8),
+)
+#: Anything an argument could be: scalars, nested lists, arrays of any dtype, mappings.
+_ANYTHING = st.recursive(
+    st.one_of(_SCALARS, _ARRAYS),
+    lambda inner: st.lists(inner, max_size=6)
+    | st.tuples(inner, inner, inner)
+    | st.dictionaries(st.text(max_size=2), inner, max_size=2),
+    max_leaves=40,
+)
+
+
+def _good_curves(world):
+    return [np.array(c) for c in world["touch"].curves]
+
+
+def _assert_names_an_argument(exc: Exception, names) -> None:
+    """A TypeError or ValueError whose one-line message names one of ``names``."""
+    assert isinstance(exc, (TypeError, ValueError)), repr(exc)
+    message = str(exc)
+    assert "\n" not in message
+    assert any(name in message for name in names), (names, message)
+
+
+@settings(derandomize=True, database=None, max_examples=80, deadline=None)
+@given(
+    which=st.sampled_from(["curves", "curve", "contact", "normal", "all"]),
+    value=_ANYTHING,
+    value2=_ANYTHING,
+)
+def test_touch_data_refuses_malformed_arguments(world, which, value, value2):
+    curves = _good_curves(world)
+    kwargs = {"curves": curves}
+    if which == "curves":
+        kwargs["curves"] = value
+    elif which == "curve":
+        kwargs["curves"] = [curves[0], value, curves[2]]
+    elif which == "all":
+        kwargs = {"curves": value, "contact": value2, "normal": value}
+    else:
+        kwargs[which] = value
+    try:
+        touch = TouchData(**kwargs)
+    except Exception as exc:  # which exception, and its message, is the test
+        _assert_names_an_argument(exc, ["curves", "contact", "normal"])
+        return
+    for c in touch.curves:
+        assert c.dtype == np.float64
+        assert c.ndim == 2
+        assert c.shape[1] == 3
+        assert np.isfinite(c).all()
+    if touch.normal is not None:
+        assert abs(np.linalg.norm(touch.normal) - 1.0) < 1e-12
+
+
+@settings(derandomize=True, database=None, max_examples=80, deadline=None)
+@given(
+    which=st.sampled_from(["curves", "curve", "point", "normal", "degree"]),
+    value=_ANYTHING,
+)
+def test_geometry_refuses_malformed_arguments(world, which, value):
+    curves = _good_curves(world)
+    kwargs = {"curves": curves}
+    if which == "curve":
+        kwargs["curves"] = [curves[0], value, curves[2]]
+    else:
+        kwargs[which] = value
+    for func in (estimate_local_geometry, find_common_point):
+        if func is find_common_point:
+            kwargs = {"curves": kwargs["curves"]}
+        try:
+            result = func(**kwargs)
+        except Exception as exc:  # which exception, and its message, is the test
+            _assert_names_an_argument(exc, ["curves", "point", "normal", "degree"])
+            continue
+        assert np.isfinite(result.point).all()
+
+
+@pytest.fixture(scope="module")
+def small_ball():
+    return trimesh.creation.icosphere(subdivisions=2)
+
+
+@settings(derandomize=True, database=None, max_examples=60, deadline=None)
+@given(
+    which=st.sampled_from(
+        ["contact", "rng", "n_points", "noise", "length", "transform", "name", "mesh"]
+    ),
+    value=_ANYTHING,
+)
+def test_simulate_refuses_malformed_arguments(small_ball, which, value):
+    kwargs = {"mesh": small_ball, "rng": 0, "n_points": 7}
+    kwargs[which] = value
+    if which == "mesh" and isinstance(value, (str, bytes)):
+        return  # a string names a file: relative to the working directory, not here
+    try:
+        sim = simulate_touch(**kwargs)
+    except Exception as exc:  # which exception, and its message, is the test
+        _assert_names_an_argument(exc, [which])
+        return
+    assert len(sim.touch.curves) == 3
+
+
+@settings(derandomize=True, database=None, max_examples=40, deadline=None)
+@given(
+    which=st.sampled_from(["touch", "library", "method", "geometry", "progress"]),
+    value=_ANYTHING,
+)
+def test_recognize_refuses_malformed_arguments(world, which, value):
+    if value is None and which in ("geometry", "progress"):
+        return  # their default
+    kwargs = {"touch": world["touch"], "library": world["library"]}
+    kwargs[which] = value
+    try:
+        recognize(**kwargs)
+    except Exception as exc:  # which exception, and its message, is the test
+        _assert_names_an_argument(exc, [which])
+        return
+    raise AssertionError(f"{which}={value!r} was accepted")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"touch": "t.csv"}, TypeError, "touch must be a TouchData, got str"),
+        ({"geometry": 3}, TypeError, "geometry must be a LocalGeometry or None, got int"),
+        ({"method": 1}, TypeError, r"method must be one of \('lm', 'steepest'\), got int"),
+        ({"method": "x"}, ValueError, r"method must be one of \('lm', 'steepest'\), got 'x'"),
+        ({"max_candidates": 1.5}, TypeError, "max_candidates must be an integer, got float"),
+        ({"max_candidates": 0}, ValueError, "max_candidates must be >= 1, got 0"),
+        ({"searches": True}, TypeError, "searches must be an integer, got bool"),
+        ({"rival_error": "1"}, TypeError, "rival_error must be a real number, got str"),
+        ({"rival_error": float("nan")}, ValueError, "rival_error must be finite"),
+    ],
+)
+def test_register_argument_checks(world, kwargs, error, match):
+    from meshrec.registration.register import register
+
+    args = {"touch": world["touch"], "model": world["library"]["ball"], **kwargs}
+    with pytest.raises(error, match=match):
+        register(**args)
+
+
+def test_recognize_argument_checks(world):
+    with pytest.raises(TypeError, match=r"library\[1\] must be a ModelIndex, got str"):
+        recognize(world["touch"], [world["library"]["ball"], "ball.stl"])
+    with pytest.raises(TypeError, match="library must be a ModelLibrary or an iterable"):
+        recognize(world["touch"], "models/")
+    with pytest.raises(TypeError, match="progress must be callable or None, got int"):
+        recognize(world["touch"], world["library"], progress=1)

@@ -12,7 +12,8 @@ import trimesh
 
 from meshrec import defaults
 from meshrec.io.touch import TouchData
-from meshrec.sim.simulate import SimulatedTouch, _closest_point, _Surface, simulate_touch
+from meshrec.io.truth import Truth, read_truth
+from meshrec.sim.simulate import SimulatedTouch, simulate_touch
 
 RADIUS = 2.0
 
@@ -51,6 +52,31 @@ def _paraboloid(x, y):
 @pytest.fixture(scope="module")
 def paraboloid():
     return _grid_patch(_paraboloid)
+
+
+def _mesh_distance(mesh: trimesh.Trimesh, point) -> float:
+    """Distance from ``point`` to the mesh, brute force over every face by barycentric
+    coordinates (trimesh's), independent of the simulator's closest-point query: the
+    distance to a face's plane where the projection falls inside the face, else to the
+    nearest vertex or edge (an upper bound that is exact for points on the mesh)."""
+    p = np.asarray(point, dtype=np.float64)
+    tri = mesh.triangles
+    normals = mesh.face_normals
+    height = np.einsum("ij,ij->i", p - tri[:, 0], normals)
+    foot = p - height[:, None] * normals
+    bary = trimesh.triangles.points_to_barycentric(tri, foot)
+    inside = np.all(bary >= -1e-9, axis=1)
+    best = np.abs(height[inside]).min() if inside.any() else np.inf
+    return float(min(best, np.linalg.norm(mesh.vertices - p, axis=1).min()))
+
+
+def _chord_error(mesh: trimesh.Trimesh, radius: float) -> float:
+    """The most a mesh inscribed in a sphere or cylinder of ``radius`` falls inside it:
+    the sagitta of its longest edge, r - sqrt(r^2 - (e/2)^2) (an edge's midpoint lies
+    deeper than any face's points... up to the face's circumradius, bounded by e / sqrt(3))."""
+    e = float(mesh.edges_unique_length.max())
+    half = e / math.sqrt(3.0)  # the circumradius of a face with longest edge e, at most
+    return radius - math.sqrt(radius * radius - half * half)
 
 
 def _steps(curve: np.ndarray) -> np.ndarray:
@@ -93,7 +119,7 @@ def test_sphere_curves_lie_on_the_sphere_equally_spaced(sphere, seed):
 def test_sphere_curves_meet_at_the_contact_not_parallel(sphere, seed):
     sim = simulate_touch(sphere, rng=seed, noise=0.0, transform=False)
     # the contact is on the mesh and the normal is the outward face normal there
-    assert _closest_point(_Surface(sphere), sim.contact)[2] < 1e-12
+    assert _mesh_distance(sphere, sim.contact) < 1e-12
     assert np.linalg.norm(sim.normal) == pytest.approx(1.0)
     assert sim.normal @ (sim.contact / np.linalg.norm(sim.contact)) > 0.99
     mid = defaults.SIM_POINTS // 2
@@ -223,7 +249,7 @@ def test_given_contact_is_honoured(sphere):
     given = RADIUS * direction / np.linalg.norm(direction)  # on the sphere, near the mesh
     sim = simulate_touch(sphere, contact=given, rng=1, noise=0.0, transform=False)
     assert np.linalg.norm(sim.contact - given) <= _sphere_depth(sphere) + 1e-9
-    assert _closest_point(_Surface(sphere), sim.contact)[2] < 1e-12
+    assert _mesh_distance(sphere, sim.contact) < 1e-12
     mid = defaults.SIM_POINTS // 2
     for curve in sim.clean_curves:
         np.testing.assert_array_equal(curve[mid], sim.contact)
@@ -331,14 +357,33 @@ def test_write_csv_and_truth(tmp_path, sphere):
     assert truth == sim.truth_dict()
 
 
-def test_write_json_with_default_truth_path(tmp_path, sphere):
+def test_write_json_without_truth_writes_only_the_touch(tmp_path, sphere):
     sim = simulate_touch(sphere, rng=11)
     sim.write(tmp_path / "t.json")
     back = TouchData.from_json(tmp_path / "t.json")
     np.testing.assert_array_equal(back.points, sim.touch.points)
-    truth = json.loads((tmp_path / "t.truth.json").read_text())
-    assert truth["model"] == ""
-    assert truth["seed"] == 11
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
+
+
+def test_truth_file_maps_the_touch_file_onto_the_sphere(tmp_path, sphere):
+    # the files alone (read back through the public readers) carry the truth: the touch
+    # mapped by T_model_touch lies on the analytic sphere within the chord error and noise
+    noise = 2e-3
+    sim = simulate_touch(sphere, rng=12, noise=noise)
+    sim.write(tmp_path / "t.csv", tmp_path / "truth.json")
+    touch = TouchData.from_file(tmp_path / "t.csv")
+    truth = read_truth(tmp_path / "truth.json")
+    assert isinstance(truth, Truth)
+    assert (truth.points, truth.seed, truth.noise) == (defaults.SIM_POINTS, 12, noise)
+    back = touch.transformed(truth.T_model_touch).points
+    r = np.linalg.norm(back, axis=1)
+    slack = noise * math.sqrt(3.0)
+    assert np.all(r <= RADIUS + slack)
+    assert np.all(r >= RADIUS - _chord_error(sphere, RADIUS) - slack)
+    assert abs(np.linalg.norm(truth.contact) - RADIUS) <= _chord_error(sphere, RADIUS)
+    np.testing.assert_allclose(
+        truth.normal, truth.contact / np.linalg.norm(truth.contact), atol=0.02
+    )
 
 
 def test_write_rejects_unknown_suffix_and_same_path(tmp_path, coarse_sphere):
@@ -360,37 +405,110 @@ def test_result_is_immutable(coarse_sphere):
 
 # ------------------------------------------------------------------ argument checks
 @pytest.mark.parametrize(
-    ("kwargs", "pattern"),
+    ("kwargs", "error", "pattern"),
     [
-        ({"n_points": 4}, "n_points .* got 4"),
-        ({"n_points": 3}, "n_points .* got 3"),
-        ({"n_points": 61.0}, r"n_points .* got 61\.0"),
-        ({"n_points": True}, "n_points .* got True"),
-        ({"noise": -0.1}, r"noise .* got -0\.1"),
-        ({"noise": float("nan")}, "noise .* got nan"),
-        ({"noise": float("inf")}, "noise .* got inf"),
-        ({"noise": "a"}, "noise must be a number, got 'a'"),
-        ({"length": 0.0}, r"length .* got 0\.0"),
-        ({"length": -1}, r"length .* got -1\.0"),
-        ({"length": float("inf")}, "length .* got inf"),
-        ({"contact": [0.0, 1.0]}, r"contact must have shape \(3,\), got shape \(2,\)"),
-        ({"contact": [0.0, float("nan"), 1.0]}, "contact must be finite, got .*nan"),
-        ({"contact": "abc"}, "contact must be 3 numbers"),
-        ({"rng": -1}, "rng must be a non-negative int seed, got -1"),
-        ({"rng": "seed"}, "rng must be .* got 'seed'"),
-        ({"transform": "yes"}, "transform must be True or False, got 'yes'"),
+        ({"n_points": 4}, ValueError, "n_points .* got 4"),
+        ({"n_points": 3}, ValueError, "n_points .* got 3"),
+        ({"n_points": 10**6 + 1}, ValueError, "n_points must be <= 9999, got 1000001"),
+        ({"n_points": 61.0}, TypeError, r"n_points must be an integer, got float 61\.0"),
+        ({"n_points": True}, TypeError, "n_points .* got bool True"),
+        ({"noise": -0.1}, ValueError, r"noise .* got -0\.1"),
+        ({"noise": float("nan")}, ValueError, "noise .* got nan"),
+        ({"noise": float("inf")}, ValueError, "noise .* got inf"),
+        ({"noise": 1e308}, ValueError, r"noise must be at most 1\.0 \* sqrt\(area\)"),
+        ({"noise": 10**400}, ValueError, "noise must be finite"),
+        ({"noise": "a"}, TypeError, "noise must be a real number, got str a"),
+        ({"noise": 1e-3j}, TypeError, "noise must be a real number, got complex"),
+        ({"length": 0.0}, ValueError, r"length .* got 0\.0"),
+        ({"length": -1}, ValueError, r"length .* got -1\.0"),
+        ({"length": float("inf")}, ValueError, "length .* got inf"),
+        ({"length": None, "name": 3}, TypeError, "name must be a str, got int"),
+        ({"contact": [0.0, 1.0]}, ValueError, r"contact must be \(3,\), got \(2,\)"),
+        ({"contact": [0.0, float("nan"), 1.0]}, ValueError, "contact must be finite, got .*nan"),
+        ({"contact": "abc"}, TypeError, "contact must be an array of real numbers, got str"),
+        ({"contact": [1j, 0, 0]}, TypeError, "contact must hold real numbers, got a complex"),
+        ({"rng": -1}, ValueError, "rng must be a non-negative int seed, got -1"),
+        ({"rng": "seed"}, TypeError, "rng must be .* got str seed"),
+        ({"rng": 1.5}, TypeError, "rng must be .* got float 1.5"),
+        ({"transform": "yes"}, TypeError, "transform must be True or False, got yes"),
     ],
 )
-def test_invalid_arguments(coarse_sphere, kwargs, pattern):
-    with pytest.raises(ValueError, match=pattern):
+def test_invalid_arguments(coarse_sphere, kwargs, error, pattern):
+    with pytest.raises(error, match=pattern):
         simulate_touch(coarse_sphere, **kwargs)
 
 
 def test_invalid_meshes(tmp_path):
-    with pytest.raises(ValueError, match="does not exist"):
+    with pytest.raises(ValueError, match=r"missing\.stl: no such file"):
         simulate_touch(tmp_path / "missing.stl")
+    text = tmp_path / "notes.txt"
+    text.write_text("not a mesh\n")
+    with pytest.raises(ValueError, match=r"notes\.txt: not a readable mesh"):
+        simulate_touch(text)
+    garbage = tmp_path / "garbage.stl"
+    garbage.write_bytes(b"solid x\nfacet normal 0 0 1\n")
+    with pytest.raises(ValueError, match=r"garbage\.stl: (not a readable mesh|holds no triangle)"):
+        simulate_touch(garbage)
+
+    class Complex:
+        vertices = np.zeros((3, 3), dtype=complex)
+        faces = np.array([[0, 1, 2]])
+
+    with pytest.raises(TypeError, match=r"mesh\.vertices must hold real numbers"):
+        simulate_touch(Complex())
+
+    class OutOfRange:
+        vertices = np.eye(3)
+        faces = np.array([[0, 1, 3]])
+
+    with pytest.raises(ValueError, match=r"mesh\.faces must index the 3 vertices"):
+        simulate_touch(OutOfRange())
     with pytest.raises(TypeError, match="got int"):
         simulate_touch(42)
     flat = trimesh.Trimesh(vertices=np.zeros((3, 3)), faces=[[0, 1, 2]], process=False)
     with pytest.raises(ValueError, match="positive surface area"):
         simulate_touch(flat)
+
+
+# ------------------------------------------------------------------ independent truths
+def _cylinder_distance(points: np.ndarray, radius: float, height: float) -> np.ndarray:
+    """Distance to the surface of the closed cylinder x^2 + y^2 = r^2, |z| <= h / 2."""
+    rho = np.hypot(points[:, 0], points[:, 1])
+    z = np.abs(points[:, 2]) - height / 2
+    outside = np.hypot(np.maximum(rho - radius, 0.0), np.maximum(z, 0.0))
+    inside = np.minimum(radius - rho, -z)
+    return np.where((rho <= radius) & (z <= 0), inside, outside)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_touch_on_a_cylinder_maps_onto_the_analytic_cylinder(seed):
+    radius, height, noise = 1.0, 4.0, 1e-3
+    mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=256)
+    sim = simulate_touch(mesh, rng=seed, noise=noise, length=0.8)
+    back = sim.touch.transformed(sim.T_model_touch)
+    slack = noise * math.sqrt(3.0) + 1e-12
+    chord = radius * (1.0 - math.cos(math.pi / 256))  # the side's sagitta; caps are flat
+    for curve in back.curves:
+        assert np.all(_cylinder_distance(curve, radius, height) <= chord + slack)
+    # the noiseless curves are on the mesh (the chord error is the only gap) and each one
+    # is a plane curve through the contact
+    for curve in sim.clean_curves:
+        assert np.all(_cylinder_distance(curve, radius, height) <= chord + 1e-12)
+        _, sv, _ = np.linalg.svd(curve - sim.contact)
+        assert sv[2] < 1e-9 * sv[0]
+    assert _mesh_distance(mesh, sim.contact) < 1e-12
+
+
+def test_rotation_is_uniform_and_proper(coarse_sphere):
+    # Rotation.random: proper rotations whose columns average to zero over many seeds
+    # (a uniform rotation's expected matrix is 0), translations within +-sqrt(area)
+    Rs = []
+    for seed in range(60):
+        T = simulate_touch(coarse_sphere, rng=seed, n_points=5, length=0.3).T_touch_model
+        R = T[:3, :3]
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+        assert np.all(np.abs(T[:3, 3]) <= math.sqrt(coarse_sphere.area))
+        np.testing.assert_array_equal(T[3], [0, 0, 0, 1])
+        Rs.append(R)
+    assert np.abs(np.mean(Rs, axis=0)).max() < 0.3  # 60 draws: sd of an entry ~ 0.075

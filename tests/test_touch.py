@@ -1,6 +1,8 @@
 """Tests for meshrec.io.touch: reading, writing and validating touch data."""
 
 import json
+import os
+import warnings
 
 import numpy as np
 import pytest
@@ -69,25 +71,74 @@ def test_with_hints():
     assert touch.normal is None
 
 
+_BIG = 10**400  # beyond any float
+
+
 @pytest.mark.parametrize(
-    ("kwargs", "match"),
+    ("kwargs", "error", "match"),
     [
-        ({"curves": _curves()[:2]}, "at least 3 curves"),
-        ({"curves": [*_curves()[:2], np.zeros(5)]}, r"curves\[2\] must be \(n, 3\), got \(5,\)"),
-        ({"curves": [*_curves()[:2], np.zeros((4, 3))]}, r"curves\[2\] must have at least 5"),
-        ({"curves": [*_curves()[:2], np.full((5, 3), np.nan)]}, "non-finite point at row 0"),
-        ({"curves": np.zeros((10, 3))}, "sequence of"),
-        ({"curves": 5}, "sequence of"),
-        ({"curves": [*_curves()[:2], [["a", 1, 2]] * 5]}, "array of numbers"),
-        ({"curves": _curves(), "contact": [1, 2]}, r"contact must be \(3,\), got \(2,\)"),
-        ({"curves": _curves(), "contact": "abc"}, "contact must be 3 numbers"),
-        ({"curves": _curves(), "normal": [0, 0, np.inf]}, "normal must be finite"),
-        ({"curves": _curves(), "normal": [0, 0, 0]}, "non-zero"),
+        ({"curves": _curves()[:2]}, ValueError, "at least 3 curves"),
+        (
+            {"curves": [*_curves()[:2], np.zeros(5)]},
+            ValueError,
+            r"curves\[2\] must be \(n, 3\), got \(5,\)",
+        ),
+        (
+            {"curves": [*_curves()[:2], np.zeros((4, 3))]},
+            ValueError,
+            r"curves\[2\] must have at least 5",
+        ),
+        (
+            {"curves": [*_curves()[:2], np.full((5, 3), np.nan)]},
+            ValueError,
+            "non-finite point at row 0",
+        ),
+        ({"curves": np.zeros((10, 3))}, ValueError, "curves must be a sequence of"),
+        ({"curves": 5}, TypeError, "curves must be a sequence of .* got int"),
+        ({"curves": "abc"}, TypeError, "curves must be a sequence of .* got str"),
+        ({"curves": {"a": 1}}, TypeError, "curves must be a sequence of .* got dict"),
+        ({"curves": [*_curves()[:2], [["a", 1, 2]] * 5]}, TypeError, r"curves\[2\] must hold real"),
+        ({"curves": [*_curves()[:2], [[object(), 1, 2]] * 5]}, TypeError, r"curves\[2\] must hold"),
+        ({"curves": [*_curves()[:2], _curves()[2] + 0j]}, TypeError, r"curves\[2\] .* complex"),
+        ({"curves": [*_curves()[:2], _curves()[2] > 0]}, TypeError, r"curves\[2\] .* bool"),
+        ({"curves": [*_curves()[:2], [[_BIG, 0, 0]] * 5]}, ValueError, r"curves\[2\] .* too large"),
+        ({"curves": [*_curves()[:2], [[1, 2, 3], [1, 2]]]}, ValueError, r"curves\[2\] .* regular"),
+        (
+            {"curves": [np.zeros((defaults.MAX_POINTS_PER_CURVE + 1, 3))] * 3},
+            ValueError,
+            r"curves\[0\] must have at most 10000 points",
+        ),
+        (
+            {"curves": [np.zeros((defaults.MAX_TOUCH_POINTS // 4 + 1, 3))] * 4},
+            ValueError,
+            "at most 30000 points in all",
+        ),
+        ({"curves": _curves() * 6}, ValueError, "at most 16 curves"),
+        (
+            {"curves": _curves(), "contact": [1, 2]},
+            ValueError,
+            r"contact must be \(3,\), got \(2,\)",
+        ),
+        ({"curves": _curves(), "contact": "abc"}, TypeError, "contact must be an array of real"),
+        ({"curves": _curves(), "contact": [1j, 0, 0]}, TypeError, "contact must hold real"),
+        ({"curves": _curves(), "contact": [_BIG, 0, 0]}, ValueError, "contact holds a number too"),
+        ({"curves": _curves(), "normal": [0, 0, np.inf]}, ValueError, "normal must be finite"),
+        ({"curves": _curves(), "normal": [0, 0, 0]}, ValueError, "non-zero"),
+        ({"curves": _curves(), "normal": None, "source": 3}, TypeError, "source must be a str"),
     ],
 )
-def test_validation_errors(kwargs, match):
-    with pytest.raises(ValueError, match=match):
+def test_validation_errors(kwargs, error, match):
+    with pytest.raises(error, match=match):
         TouchData(**kwargs)
+
+
+def test_huge_normal_is_normalised_without_overflow():
+    # (1e308)^2 overflows: the length is taken after scaling, with no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        touch = TouchData(curves=_curves(), normal=[1e308, 0, 1e308])
+    np.testing.assert_allclose(touch.normal, [2**-0.5, 0, 2**-0.5])
+    np.testing.assert_allclose(TouchData(curves=_curves(), normal=[0, 3e-320, 0]).normal, [0, 1, 0])
 
 
 def test_min_points_constant_is_used():
@@ -152,4 +203,24 @@ def test_json_file_is_plain_json(tmp_path):
     data = json.loads(path.read_text())
     assert set(data) == {"curves"}
     assert len(data["curves"]) == 3
-    assert not list(tmp_path.glob(".*.tmp"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]  # no temporary file left
+
+
+def test_paths_must_be_paths(tmp_path):
+    touch = TouchData(curves=_curves())
+    for call in (TouchData.from_file, TouchData.from_csv, TouchData.from_json, touch.to_file):
+        with pytest.raises(TypeError, match=r"path must be a str or os\.PathLike, got int"):
+            call(3)
+    with pytest.raises(TypeError, match=r"T must hold real numbers, got a complex128"):
+        touch.transformed(np.eye(4, dtype=complex))
+
+
+def test_written_files_follow_the_umask(tmp_path):
+    previous = os.umask(0o077)
+    try:
+        TouchData(curves=_curves()).to_file(tmp_path / "private.csv")
+    finally:
+        os.umask(previous)
+    TouchData(curves=_curves()).to_file(tmp_path / "shared.json")
+    assert (tmp_path / "private.csv").stat().st_mode & 0o777 == 0o600
+    assert (tmp_path / "shared.json").stat().st_mode & 0o777 == 0o666 & ~previous

@@ -12,6 +12,7 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec._version import __version__
+from meshrec.io.checks import check_vector, one_line
 from meshrec.io.touch import TouchData
 from meshrec.model.library import ModelLibrary, bundled_models_dir
 from meshrec.recognition.recognize import Recognition, recognize
@@ -24,14 +25,19 @@ _VECTOR_OPTIONS = ("--contact", "--normal")
 
 
 def _vector(text: str) -> np.ndarray:
-    parts = text.replace(" ", "").split(",")
+    """Parse ``X,Y,Z`` for ``--contact`` and ``--normal`` (checked by check_vector)."""
     try:
-        values = [float(p) for p in parts]
+        values = [float(p) for p in text.replace(" ", "").split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
-    if len(values) != 3 or not np.all(np.isfinite(values)):
-        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
-    return np.array(values)
+        raise argparse.ArgumentTypeError(
+            f"expected X,Y,Z numbers, got {one_line(text, 60)!r}"
+        ) from None
+    try:
+        return check_vector(values, "vector")
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected three finite numbers X,Y,Z, got {one_line(text, 60)!r}"
+        ) from None
 
 
 class _Parser(argparse.ArgumentParser):
@@ -118,7 +124,7 @@ def _resolve_model_file(text: str) -> Path:
         folder = bundled_models_dir(lib)
         for candidate in sorted(folder.glob(f"{text}.*")):
             return candidate
-    raise ValueError(f"model_file {text}: no such file, nor a bundled model of that name")
+    raise ValueError(f"model_file {one_line(text)}: no such file, nor a bundled model of that name")
 
 
 def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
@@ -226,11 +232,12 @@ def _run(args) -> int:
         noise=args.noise,
         length=args.length,
     )
-    sim.write(args.output, args.truth)
+    sim.write(args.output, args.truth)  # the truth file only with --truth
     c = np.array2string(sim.contact, precision=5)
+    truth = f"truth in {one_line(args.truth)}" if args.truth else "no truth file (use --truth)"
     sys.stdout.write(
-        f"wrote {args.output}: {len(sim.touch.curves)} curves x {args.points} points on "
-        f"{sim.model}, true contact {c}" + (f"; truth in {args.truth}" if args.truth else "") + "\n"
+        f"wrote {one_line(args.output)}: {len(sim.touch.curves)} curves x {args.points} "
+        f"points on {one_line(sim.model)}, true contact {c}; {truth}\n"
     )
     return 0
 
@@ -389,7 +396,7 @@ def _join_vector_options(argv: list[str]) -> list[str]:
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    (file or sys.stderr).write(f"meshrec: warning: {message}\n")
+    (file or sys.stderr).write(f"meshrec: warning: {one_line(str(message), None)}\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -416,12 +423,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _run(args)
     except ValueError as exc:
-        sys.stderr.write(f"meshrec: error: {exc}\n")
+        sys.stderr.write(f"meshrec: error: {one_line(str(exc), None)}\n")
         return 2
     except OSError as exc:  # e.g. an output file that cannot be written
         target = exc.filename2 or exc.filename  # a rename's destination, else the file
-        where = f" {target}:" if target else ""
-        sys.stderr.write(f"meshrec: error:{where} {exc.strerror or exc}\n")
+        where = f" {one_line(target)}:" if target else ""
+        sys.stderr.write(f"meshrec: error:{where} {one_line(str(exc.strerror or exc), None)}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("meshrec: interrupted\n")

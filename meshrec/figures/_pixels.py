@@ -5,11 +5,10 @@ Sizes and atomic writes.
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
+
+from meshrec.io.files import write_atomic
 
 
 def check_size(size, low: int, high: int, name: str = "size") -> tuple[int, int]:
@@ -46,16 +45,17 @@ def check_size(size, low: int, high: int, name: str = "size") -> tuple[int, int]
 
 
 def write_png_atomic(path, write: Callable[[str], None]) -> Path:
-    """Write a PNG through a temporary file in its folder and a rename.
+    """Write a PNG through :func:`meshrec.io.files.write_atomic`.
 
-    An interrupted or failed write leaves no half-written picture at ``path``.
+    An interrupted or failed write leaves no half-written picture at ``path``; the file
+    gets the mode ``open()`` would give it (following the umask).
 
     Parameters
     ----------
     path : str or os.PathLike
         The PNG; its folder is created.
     write : callable
-        ``write(tmp)`` writes the picture to the file name ``tmp``.
+        ``write(tmp)`` writes the picture to the file name ``tmp`` (ending in ``.png``).
 
     Returns
     -------
@@ -67,15 +67,4 @@ def write_png_atomic(path, write: Callable[[str], None]) -> Path:
     OSError
         If the folder or the file cannot be written (the temporary file is removed).
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomic(path, write)

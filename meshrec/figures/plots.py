@@ -503,17 +503,20 @@ def phi_figure(profile: PhiProfile, path, *, size=(1100, 480)) -> Path:
 def _truth_contact(truth) -> np.ndarray | None:
     if truth is None:
         return None
-    from meshrec.sim.simulate import SimulatedTouch, _read_truth_file, _truth_point
+    from meshrec.io.truth import Truth, read_truth
+    from meshrec.sim.simulate import SimulatedTouch
 
     if isinstance(truth, SimulatedTouch):
         return np.asarray(truth.contact, dtype=np.float64)
     if isinstance(truth, (str, os.PathLike)):
-        truth = _read_truth_file(truth)
-    if isinstance(truth, Mapping) and "contact" in truth:
-        return _truth_point(truth["contact"], "truth['contact']")
+        truth = read_truth(truth)
+    elif isinstance(truth, Mapping) and "contact" in truth:
+        truth = Truth.from_dict(truth)
+    if isinstance(truth, Truth):
+        return np.array(truth.contact)
     raise ValueError(
-        "truth must be a SimulatedTouch, a truth dict or truth JSON file with a 'contact' "
-        f"of 3 numbers, got {type(truth).__name__}"
+        "truth must be a SimulatedTouch, a Truth, a truth dict or truth JSON file with a "
+        f"'contact' of 3 numbers, got {type(truth).__name__}"
     )
 
 

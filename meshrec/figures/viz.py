@@ -352,7 +352,8 @@ def _load_truth(truth, touch, model_name: str):
     """(true curves, true contact) in model coordinates, or ((), None)."""
     if truth is None:
         return (), None
-    from meshrec.sim.simulate import SimulatedTouch, _read_truth_file, _truth_point
+    from meshrec.io.truth import Truth, read_truth
+    from meshrec.sim.simulate import SimulatedTouch
 
     if isinstance(truth, SimulatedTouch):
         name = truth.model
@@ -362,29 +363,19 @@ def _load_truth(truth, touch, model_name: str):
             truth.contact, dtype=np.float64
         )
     if isinstance(truth, (str, os.PathLike)):
-        truth = _read_truth_file(truth)
-    if not isinstance(truth, Mapping):
+        truth = read_truth(truth)
+    elif isinstance(truth, Mapping):
+        truth = Truth.from_dict(truth)
+    elif not isinstance(truth, Truth):
         raise ValueError(
-            f"truth must be a SimulatedTouch, a truth dict or a truth JSON file, "
+            f"truth must be a SimulatedTouch, a Truth, a truth dict or a truth JSON file, "
             f"got {type(truth).__name__}"
         )
-    try:
-        T = np.asarray(truth["T_model_touch"], dtype=np.float64)
-    except KeyError:
-        raise ValueError(
-            f"truth must have a 'T_model_touch' entry, got keys {sorted(truth)}"
-        ) from None
-    except (TypeError, ValueError):
-        raise ValueError("truth['T_model_touch'] must be a 4x4 matrix of numbers") from None
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ValueError(f"truth['T_model_touch'] must be a finite 4x4 matrix, got {T.shape}")
-    name = truth.get("model") or ""
-    if _other_model(name, model_name):
+    if _other_model(truth.model, model_name):
         return (), None
+    T = truth.T_model_touch
     curves = tuple(apply_transform(T, np.asarray(c, dtype=np.float64)) for c in touch.curves)
-    contact = truth.get("contact")
-    contact = None if contact is None else _truth_point(contact, "truth['contact']")
-    return curves, contact
+    return curves, np.array(truth.contact)
 
 
 def _mesh_arrays(mesh, reg) -> tuple[np.ndarray, np.ndarray]:

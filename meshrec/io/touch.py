@@ -15,52 +15,18 @@ import io
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_curves, check_transform, check_vector, one_line
+from meshrec.io.files import read_text, write_atomic
 
 __all__ = ["TouchData"]
 
 _CSV_HEADER = ("curve", "x", "y", "z")
-
-
-def _as_vector(value, name: str) -> np.ndarray:
-    """Return ``value`` as a finite (3,) float64 array or raise ValueError naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be 3 numbers, got {value!r}") from exc
-    if arr.shape != (3,):
-        raise ValueError(f"{name} must be (3,), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
-    return arr
-
-
-def _as_curve(value, index: int) -> np.ndarray:
-    """Return curve ``index`` as a finite (n, 3) float64 array or raise ValueError."""
-    name = f"curves[{index}]"
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an (n, 3) array of numbers: {exc}") from exc
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must be (n, 3), got {arr.shape}")
-    if arr.shape[0] < defaults.MIN_POINTS_PER_CURVE:
-        raise ValueError(
-            f"{name} must have at least {defaults.MIN_POINTS_PER_CURVE} points, "
-            f"got {arr.shape[0]}"
-        )
-    bad = ~np.isfinite(arr).all(axis=1)
-    if bad.any():
-        row = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{name} has a non-finite point at row {row}: {arr[row].tolist()}")
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,10 +47,16 @@ class TouchData:
 
     Raises
     ------
+    TypeError
+        If ``curves`` is not a sequence of arrays, a curve, ``contact`` or ``normal`` is
+        not real numbers (complex, bool, strings), or ``source`` is not a str.
     ValueError
-        If there are fewer than ``defaults.MIN_CURVES`` curves, a curve is not (n, 3),
-        has too few points or a non-finite value, or ``contact`` / ``normal`` is not a
-        finite (3,) vector, or ``normal`` is zero.
+        If there are fewer than ``defaults.MIN_CURVES`` or more than
+        ``defaults.MAX_CURVES`` curves, a curve is not (n, 3), has fewer than
+        ``defaults.MIN_POINTS_PER_CURVE`` or more than ``defaults.MAX_POINTS_PER_CURVE``
+        points or a non-finite value, all curves hold more than
+        ``defaults.MAX_TOUCH_POINTS`` points, or ``contact`` / ``normal`` is not a finite
+        (3,) vector, or ``normal`` is zero (see :mod:`meshrec.io.checks`).
     """
 
     curves: tuple[np.ndarray, ...]
@@ -93,29 +65,16 @@ class TouchData:
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if isinstance(self.curves, np.ndarray) and self.curves.ndim == 2:
-            raise ValueError(
-                f"curves must be a sequence of (n, 3) arrays, got one array {self.curves.shape}"
-            )
-        try:
-            items = list(self.curves)
-        except TypeError as exc:
-            raise ValueError(
-                f"curves must be a sequence of (n, 3) arrays, got {type(self.curves).__name__}"
-            ) from exc
-        if len(items) < defaults.MIN_CURVES:
-            raise ValueError(
-                f"curves must hold at least {defaults.MIN_CURVES} curves, got {len(items)}"
-            )
-        object.__setattr__(self, "curves", tuple(_as_curve(c, i) for i, c in enumerate(items)))
+        curves = check_curves(self.curves, "curves")
+        for c in curves:
+            c.setflags(write=False)
+        object.__setattr__(self, "curves", tuple(curves))
         if self.contact is not None:
-            object.__setattr__(self, "contact", _as_vector(self.contact, "contact"))
+            object.__setattr__(self, "contact", check_vector(self.contact, "contact"))
         if self.normal is not None:
-            normal = _as_vector(self.normal, "normal")
-            length = float(np.linalg.norm(normal))
-            if length == 0.0:
-                raise ValueError("normal must be a non-zero vector, got [0, 0, 0]")
-            object.__setattr__(self, "normal", normal / length)
+            object.__setattr__(self, "normal", check_vector(self.normal, "normal", unit=True))
+        if self.source is not None and not isinstance(self.source, str):
+            raise TypeError(f"source must be a str or None, got {type(self.source).__name__}")
 
     # ------------------------------------------------------------------ properties
     @property
@@ -158,12 +117,12 @@ class TouchData:
 
         Raises
         ------
+        TypeError
+            If ``T`` is not an array of real numbers.
         ValueError
             If ``T`` is not a finite (4, 4) array.
         """
-        T = np.asarray(T, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise ValueError(f"T must be a finite (4, 4) array, got shape {T.shape}")
+        T = check_transform(T, "T")
         R, t = T[:3, :3], T[:3, 3]
         return TouchData(
             curves=[c @ R.T + t for c in self.curves],
@@ -186,73 +145,98 @@ class TouchData:
     def from_file(cls, path) -> TouchData:
         """Read a touch file, CSV or JSON by its suffix (``.csv``, ``.json``).
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Returns
+        -------
+        TouchData
+
         Raises
         ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
         ValueError
             If the file is missing, a directory or another non-regular file (a pipe),
-            unreadable, binary, not UTF-8, of an unknown suffix, or its content is
-            malformed (the message names the file and the problem).
+            unreadable, larger than ``defaults.TOUCH_MAX_FILE_BYTES``, binary, not UTF-8,
+            of an unknown suffix, or its content is malformed (the message names the file,
+            on one line, and the problem).
         """
-        path = Path(path)
+        path = _as_path(path)
         if path.is_dir():
-            raise ValueError(f"touch file {path}: is a directory, expected a file")
+            raise ValueError(f"touch file {one_line(path)}: is a directory, expected a file")
         suffix = path.suffix.lower()
         if suffix == ".csv":
             return cls.from_csv(path)
         if suffix == ".json":
             return cls.from_json(path)
-        raise ValueError(f"touch file {path}: unknown suffix {path.suffix!r}, use .csv or .json")
+        raise ValueError(
+            f"touch file {one_line(path)}: unknown suffix {one_line(path.suffix)!r}, "
+            "use .csv or .json"
+        )
 
     @classmethod
     def from_csv(cls, path) -> TouchData:
         """Read a CSV touch file with the header ``curve,x,y,z``.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Returns
+        -------
+        TouchData
+
         Raises
         ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
         ValueError
-            If the file cannot be read, the header is missing or wrong, a row is not four
-            numbers, a label is not an integer, or the curves fail validation.
+            If the file cannot be read (see :meth:`from_file`), the header is missing or
+            wrong, a row is not four numbers, a label is not an integer, there are more
+            rows than ``defaults.MAX_TOUCH_POINTS``, or the curves fail validation.
         """
-        text = _read_text(path)
+        path = _as_path(path)
+        label = f"touch file {one_line(path)}"
+        text = read_text(path, what="touch file", max_bytes=defaults.TOUCH_MAX_FILE_BYTES)
         reader = csv.reader(io.StringIO(text, newline=None))  # any line endings
         rows = []  # (line number in the file, cells), blank lines left out
         try:
             for cells in reader:
                 if cells and any(cell.strip() for cell in cells):
                     rows.append((reader.line_num, cells))
+                    if len(rows) > defaults.MAX_TOUCH_POINTS + 1:
+                        raise ValueError(
+                            f"{label}: more than {defaults.MAX_TOUCH_POINTS} points "
+                            "(defaults.MAX_TOUCH_POINTS)"
+                        )
         except csv.Error as exc:
-            raise ValueError(f"touch file {path}: not readable as CSV ({exc})") from exc
+            raise ValueError(f"{label}: not readable as CSV ({one_line(exc)})") from None
         if not rows:
-            raise ValueError(f"touch file {path}: empty, expected a header 'curve,x,y,z'")
+            raise ValueError(f"{label}: empty, expected a header 'curve,x,y,z'")
         header = tuple(cell.strip().lower() for cell in rows[0][1])
         if header != _CSV_HEADER:
             raise ValueError(
-                f"touch file {path}: header must be 'curve,x,y,z', "
-                f"got {','.join(rows[0][1])[:60]!r}"
+                f"{label}: header must be 'curve,x,y,z', got {one_line(','.join(rows[0][1]), 60)!r}"
             )
         groups: dict[int, list[list[float]]] = {}
         for line_no, row in rows[1:]:
             if len(row) != 4:
-                raise ValueError(
-                    f"touch file {path}: line {line_no} must have 4 fields, got {len(row)}"
-                )
+                raise ValueError(f"{label}: line {line_no} must have 4 fields, got {len(row)}")
+            shown = one_line(",".join(row), 60)
             try:
                 label_f = float(row[0])
                 xyz = [float(v) for v in row[1:]]
-            except ValueError as exc:
-                raise ValueError(
-                    f"touch file {path}: line {line_no} is not numeric: {','.join(row)[:60]!r}"
-                ) from exc
+            except ValueError:
+                raise ValueError(f"{label}: line {line_no} is not numeric: {shown!r}") from None
             if not math.isfinite(label_f) or label_f != int(label_f):
                 raise ValueError(
-                    f"touch file {path}: line {line_no} curve label must be an integer, "
-                    f"got {row[0]!r}"
+                    f"{label}: line {line_no} curve label must be an integer, "
+                    f"got {one_line(row[0], 40)!r}"
                 )
             if not all(math.isfinite(v) for v in xyz):
-                raise ValueError(
-                    f"touch file {path}: line {line_no} has a non-finite value: "
-                    f"{','.join(row)[:60]!r}"
-                )
+                raise ValueError(f"{label}: line {line_no} has a non-finite value: {shown!r}")
             groups.setdefault(int(label_f), []).append(xyz)
         return cls._checked(path, [groups[k] for k in sorted(groups)], None, None)
 
@@ -260,83 +244,143 @@ class TouchData:
     def from_json(cls, path) -> TouchData:
         """Read a JSON touch file ``{"curves": [...], "contact"?: [...], "normal"?: [...]}``.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Returns
+        -------
+        TouchData
+
         Raises
         ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
         ValueError
-            If the file cannot be read or parsed, ``curves`` is missing, a curve is not a
-            list of ``[x, y, z]`` lists of numbers, ``contact`` or ``normal`` is not three
-            numbers, or the content fails validation.
+            If the file cannot be read (see :meth:`from_file`) or parsed, ``curves`` is
+            missing, a curve is not a list of ``[x, y, z]`` lists of numbers (finite, and
+            within the range of a float), ``contact`` or ``normal`` is not three numbers,
+            or the content fails validation.
         """
-        text = _read_text(path)
+        path = _as_path(path)
+        label = f"touch file {one_line(path)}"
+        text = read_text(path, what="touch file", max_bytes=defaults.TOUCH_MAX_FILE_BYTES)
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise ValueError(f"touch file {path}: not valid JSON ({exc})") from exc
-        except RecursionError as exc:
-            raise ValueError(f"touch file {path}: JSON nested too deeply") from exc
+            raise ValueError(f"{label}: not valid JSON ({exc})") from None
+        except RecursionError:
+            raise ValueError(f"{label}: JSON nested too deeply") from None
         if not isinstance(data, dict) or "curves" not in data:
-            raise ValueError(f"touch file {path}: expected an object with a 'curves' list")
+            raise ValueError(f"{label}: expected an object with a 'curves' list")
         unknown = set(data) - {"curves", "contact", "normal"}
         if unknown:
-            raise ValueError(f"touch file {path}: unknown keys {sorted(unknown)}")
+            raise ValueError(f"{label}: unknown keys {one_line(sorted(unknown))}")
         if not isinstance(data["curves"], list):
-            raise ValueError(f"touch file {path}: 'curves' must be a list of curves")
+            raise ValueError(f"{label}: 'curves' must be a list of curves")
+        if len(data["curves"]) > defaults.MAX_CURVES:
+            raise ValueError(
+                f"{label}: more than {defaults.MAX_CURVES} curves (defaults.MAX_CURVES), "
+                f"got {len(data['curves'])}"
+            )
+        total = 0
         for i, curve in enumerate(data["curves"]):
             if not isinstance(curve, list):
                 raise ValueError(
-                    f"touch file {path}: curves[{i}] must be a list of [x, y, z] points, "
+                    f"{label}: curves[{i}] must be a list of [x, y, z] points, "
                     f"got {_json_type(curve)}"
                 )
+            total += len(curve)
+            if total > defaults.MAX_TOUCH_POINTS:
+                raise ValueError(
+                    f"{label}: more than {defaults.MAX_TOUCH_POINTS} points "
+                    "(defaults.MAX_TOUCH_POINTS)"
+                )
             for j, point in enumerate(curve):
-                _check_json_vector(path, point, f"curves[{i}][{j}]")
+                _check_json_vector(label, point, f"curves[{i}][{j}]")
         for key in ("contact", "normal"):
             if data.get(key) is not None:
-                _check_json_vector(path, data[key], key)
+                _check_json_vector(label, data[key], key)
         return cls._checked(path, data["curves"], data.get("contact"), data.get("normal"))
 
     @classmethod
     def _checked(cls, path, curves, contact, normal) -> TouchData:
         try:
             return cls(curves=curves, contact=contact, normal=normal, source=str(path))
-        except ValueError as exc:
-            raise ValueError(f"touch file {path}: {exc}") from exc
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"touch file {one_line(path)}: {exc}") from None
 
     # ------------------------------------------------------------------ writing
     def to_file(self, path) -> None:
-        """Write a CSV or JSON touch file by the suffix of ``path``.
+        """Write a CSV or JSON touch file by the suffix of ``path``, atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
 
         Raises
         ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
         ValueError
             If the suffix is neither ``.csv`` nor ``.json``.
+        OSError
+            If the file cannot be written.
         """
-        path = Path(path)
+        path = _as_path(path)
         suffix = path.suffix.lower()
         if suffix == ".csv":
             self.to_csv(path)
         elif suffix == ".json":
             self.to_json(path)
         else:
-            raise ValueError(f"path must end in .csv or .json, got {path.name!r}")
+            raise ValueError(f"path must end in .csv or .json, got {one_line(path.name)!r}")
 
     def to_csv(self, path) -> None:
-        """Write the curves as CSV ``curve,x,y,z`` (contact and normal are not stored)."""
+        """Write the curves as CSV ``curve,x,y,z`` (contact and normal are not stored),
+        atomically (:func:`meshrec.io.files.write_atomic`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Raises
+        ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
+        OSError
+            If the file cannot be written.
+        """
+        path = _as_path(path)
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(_CSV_HEADER)
         for i, curve in enumerate(self.curves):
             for x, y, z in curve:
                 writer.writerow([i, repr(float(x)), repr(float(y)), repr(float(z))])
-        _write_atomic(Path(path), buf.getvalue())
+        write_atomic(path, buf.getvalue())
 
     def to_json(self, path) -> None:
-        """Write the curves, and the contact and normal where known, as JSON."""
+        """Write the curves, and the contact and normal where known, as JSON, atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Raises
+        ------
+        TypeError
+            If ``path`` is not a str or os.PathLike.
+        OSError
+            If the file cannot be written.
+        """
+        path = _as_path(path)
         data: dict = {"curves": [c.tolist() for c in self.curves]}
         if self.contact is not None:
             data["contact"] = self.contact.tolist()
         if self.normal is not None:
             data["normal"] = self.normal.tolist()
-        _write_atomic(Path(path), json.dumps(data))
+        write_atomic(path, json.dumps(data))
 
 
 def _json_type(value) -> str:
@@ -347,54 +391,37 @@ def _json_type(value) -> str:
     return names.get(type(value), "a number")
 
 
-def _check_json_vector(path, value, name: str) -> None:
-    """Check that a parsed JSON value is a list of three numbers (not booleans or strings).
+def _check_json_vector(label: str, value, name: str) -> None:
+    """Check that a parsed JSON value is a list of three finite numbers (not booleans or
+    strings, nor integers beyond the range of a float such as 10**400).
 
     Raises
     ------
     ValueError
-        Naming the file, ``name`` and what was found instead.
+        Naming the file (``label``), ``name`` and what was found instead.
     """
     if not isinstance(value, list):
-        raise ValueError(f"touch file {path}: {name} must be [x, y, z], got {_json_type(value)}")
+        raise ValueError(f"{label}: {name} must be [x, y, z], got {_json_type(value)}")
     if len(value) != 3:
-        raise ValueError(f"touch file {path}: {name} must have 3 numbers, got {len(value)}")
+        raise ValueError(f"{label}: {name} must have 3 numbers, got {len(value)}")
     for v in value:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ValueError(
-                f"touch file {path}: {name} must hold numbers, got {_json_type(v)} {v!r:.40}"
+                f"{label}: {name} must hold numbers, got {_json_type(v)} {one_line(v, 40)}"
+            )
+        if isinstance(v, int) and not -_FLOAT_MAX_INT <= v <= _FLOAT_MAX_INT:
+            raise ValueError(
+                f"{label}: {name} holds an integer too large for a float "
+                f"({len(str(abs(v)))} digits)"
             )
 
 
-def _read_text(path) -> str:
-    """Read a UTF-8 text file, turning every failure into a ValueError naming the file."""
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"touch file {path}: no such file")
-    if path.is_dir():
-        raise ValueError(f"touch file {path}: is a directory, expected a file")
-    if not path.is_file():
-        raise ValueError(f"touch file {path}: not a regular file (a pipe or device?)")
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ValueError(f"touch file {path}: cannot be read ({exc.strerror})") from exc
-    if b"\x00" in raw:
-        raise ValueError(f"touch file {path}: binary content, expected CSV or JSON text")
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"touch file {path}: not UTF-8 text ({exc.reason})") from exc
+#: Integers beyond this magnitude do not fit a float64 (float(int) raises OverflowError).
+_FLOAT_MAX_INT = int(np.finfo(np.float64).max)
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def _as_path(path) -> Path:
+    """``path`` as a Path, or TypeError naming the argument."""
+    if not isinstance(path, (str, bytes)) and not hasattr(path, "__fspath__"):
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
+    return Path(os.fsdecode(path) if isinstance(path, bytes) else path)

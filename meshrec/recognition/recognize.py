@@ -10,8 +10,11 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
+from meshrec.model.index import ModelIndex
 from meshrec.registration.register import Registration, register, touch_geometry
+from meshrec.registration.search import SEARCH_METHODS
 
 __all__ = ["Recognition", "recognize"]
 
@@ -120,13 +123,30 @@ def recognize(
 
     Raises
     ------
+    TypeError
+        If ``touch`` is not a TouchData, ``library`` not an iterable of ModelIndex,
+        ``method`` not a
+        string, ``geometry`` not a LocalGeometry or ``progress`` not callable (the shared
+        checks of :mod:`meshrec.io.checks`).
     ValueError
         If the library is empty, ``method`` is unknown, the touch's size is out of all
         proportion to every model's (a likely unit mismatch, see ``_check_units``), or
         the curves do not allow an estimate of the local geometry.
     """
     t0 = time.perf_counter()
+    check_instance(touch, TouchData, "touch")
+    check_choice(method, SEARCH_METHODS, "method")
+    check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+    if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
+        raise TypeError(
+            f"library must be a ModelLibrary or an iterable of ModelIndex, got "
+            f"{type(library).__name__}"
+        )
     models = list(library)
+    for i, model in enumerate(models):
+        check_instance(model, ModelIndex, f"library[{i}]")
     if not models:
         raise ValueError("library must hold at least one model, got none")
     _check_units(touch, models)

@@ -15,6 +15,7 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
+from meshrec.io.checks import check_choice, check_instance, check_int, check_number
 from meshrec.io.touch import TouchData
 from meshrec.registration.candidates import find_candidates
 from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
@@ -131,6 +132,8 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
 
     Raises
     ------
+    TypeError
+        If ``touch`` is not a TouchData.
     ValueError
         If the curves do not allow an estimate (see
         :func:`meshrec.contact.geometry.estimate_local_geometry`).
@@ -143,6 +146,7 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
         half-length): the curves may cross an edge or a rim, where the recognition is
         less reliable.
     """
+    check_instance(touch, TouchData, "touch")
     g = estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
     ratio = g.fit_to_noise
     if ratio > defaults.ROUGH_FIT_RATIO and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * (
@@ -224,15 +228,22 @@ def register(
 
     Raises
     ------
+    TypeError
+        If ``touch`` is not a TouchData, ``geometry`` not a LocalGeometry, ``method`` not a
+        string, ``max_candidates`` or ``searches`` not an integer, or ``rival_error`` not
+        a real number (the shared checks of :mod:`meshrec.io.checks`).
     ValueError
-        If ``method`` is unknown, ``max_candidates`` or ``searches`` is not a positive
-        integer, or the local geometry cannot be estimated from the curves.
+        If ``method`` is unknown, ``max_candidates`` or ``searches`` is less than 1,
+        ``rival_error`` is negative or not finite, or the local geometry cannot be
+        estimated from the curves.
     """
-    if method not in SEARCH_METHODS:
-        raise ValueError(f"method must be one of {SEARCH_METHODS}, got {method!r}")
-    for name, value in (("max_candidates", max_candidates), ("searches", searches)):
-        if not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    check_instance(touch, TouchData, "touch")
+    check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    check_choice(method, SEARCH_METHODS, "method")
+    check_int(max_candidates, "max_candidates", minimum=1)
+    check_int(searches, "searches", minimum=1)
+    if rival_error is not None:
+        check_number(rival_error, "rival_error", minimum=0.0)
     t_start = time.perf_counter()
     if geometry is None:
         geometry = touch_geometry(touch)

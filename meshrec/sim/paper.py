@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from meshrec.io.checks import check_choice, check_points, check_vector
+
 __all__ = ["PAPER_SURFACES", "implicit_distance", "localisation_error", "symmetry_rotations"]
 
 #: The four surfaces of the paper's Table 1 with the parameters of its simulation.
@@ -38,9 +40,12 @@ def symmetry_rotations(name: str) -> np.ndarray:
 
     Raises
     ------
+    TypeError
+        If ``name`` is not a string.
     ValueError
         If ``name`` is not a paper surface.
     """
+    check_choice(name, PAPER_SURFACES, "name")
     eye = np.eye(3)
     if name == "ellipsoid":
         group = [eye, _rot("x", 180), _rot("y", 180), _rot("z", 180)]
@@ -49,10 +54,8 @@ def symmetry_rotations(name: str) -> np.ndarray:
     elif name == "monkey_saddle":
         turns = [_rot("z", a) for a in (0, 120, 240)]
         group = turns + [t @ _rot("y", 180) for t in turns]
-    elif name == "crossed_trough":
+    else:  # crossed_trough
         group = [_rot("z", a) for a in (0, 90, 180, 270)]
-    else:
-        raise ValueError(f"name must be one of {PAPER_SURFACES}, got {name!r}")
     return np.array(group)
 
 
@@ -71,13 +74,13 @@ def implicit_distance(name: str, points: np.ndarray) -> np.ndarray:
 
     Raises
     ------
+    TypeError
+        If ``name`` is not a string or ``points`` not real numbers.
     ValueError
-        If ``name`` is not a paper surface or ``points`` is not (n, 3).
+        If ``name`` is not a paper surface or ``points`` is not finite (n, 3).
     """
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ValueError(f"points must be (n, 3), got {p.shape}")
-    x, y, z = p.T
+    check_choice(name, PAPER_SURFACES, "name")
+    x, y, z = check_points(points, "points").T
     if name == "ellipsoid":
         a, b, c = 1.0, 0.8, 0.5
         f = x**2 / a**2 + y**2 / b**2 + z**2 / c**2 - 1
@@ -89,11 +92,9 @@ def implicit_distance(name: str, points: np.ndarray) -> np.ndarray:
     elif name == "monkey_saddle":
         f = x**3 - 3 * x * y**2 - z
         g = np.stack([3 * x**2 - 3 * y**2, -6 * x * y, -np.ones_like(z)], 1)
-    elif name == "crossed_trough":
+    else:  # crossed_trough
         f = x**2 * y**2 - z
         g = np.stack([2 * x * y**2, 2 * x**2 * y, -np.ones_like(z)], 1)
-    else:
-        raise ValueError(f"name must be one of {PAPER_SURFACES}, got {name!r}")
     return np.abs(f) / np.linalg.norm(g, axis=1)
 
 
@@ -115,8 +116,12 @@ def localisation_error(name: str, true_contact: np.ndarray, found_contact: np.nd
 
     Raises
     ------
+    TypeError
+        If ``name`` is not a string or a contact not real numbers.
     ValueError
-        If ``name`` is not a paper surface.
+        If ``name`` is not a paper surface or a contact is not a finite (3,) vector.
     """
-    copies = symmetry_rotations(name) @ np.asarray(true_contact, dtype=np.float64)
-    return float(np.linalg.norm(copies - np.asarray(found_contact), axis=1).min())
+    true_contact = check_vector(true_contact, "true_contact")
+    found_contact = check_vector(found_contact, "found_contact")
+    copies = symmetry_rotations(name) @ true_contact
+    return float(np.linalg.norm(copies - found_contact, axis=1).min())

@@ -14,21 +14,31 @@ middle sample of every noiseless curve is exactly the contact.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
+import igl
 import numpy as np
 import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
+from meshrec.io.checks import (
+    check_int,
+    check_number,
+    check_points,
+    check_rng,
+    check_vector,
+    one_line,
+)
 from meshrec.io.touch import TouchData
+from meshrec.io.truth import Truth, write_truth
 
 __all__ = ["SimulatedTouch", "simulate_touch"]
 
@@ -93,6 +103,21 @@ class SimulatedTouch:
         """(3,) float: the true normal in the touch frame."""
         return self.T_touch_model[:3, :3] @ self.normal
 
+    @property
+    def truth(self) -> Truth:
+        """The ground truth (:class:`meshrec.io.truth.Truth`), as written to a truth file."""
+        return Truth(
+            model=self.model,
+            contact=self.contact,
+            T_model_touch=self.T_model_touch,
+            T_touch_model=self.T_touch_model,
+            normal=self.normal,
+            noise=float(self.noise),
+            length=float(self.length),
+            points=int(self.n_points),
+            seed=self.seed,
+        )
+
     def truth_dict(self) -> dict:
         """Return the ground truth as a JSON-ready dictionary.
 
@@ -102,23 +127,12 @@ class SimulatedTouch:
             Keys ``model`` (str), ``contact``, ``normal`` (model frame, lists of 3 floats),
             ``T_touch_model``, ``T_model_touch`` (4x4 nested lists), ``contact_touch``
             (list of 3 floats), ``noise``, ``length`` (float), ``points`` (int, points
-            per curve) and ``seed`` (int or None).
+            per curve) and ``seed`` (int or None): :meth:`Truth.to_dict` of :attr:`truth`.
         """
-        return {
-            "model": self.model,
-            "contact": [float(v) for v in self.contact],
-            "normal": [float(v) for v in self.normal],
-            "T_touch_model": self.T_touch_model.tolist(),
-            "T_model_touch": self.T_model_touch.tolist(),
-            "contact_touch": [float(v) for v in self.contact_touch],
-            "noise": float(self.noise),
-            "length": float(self.length),
-            "points": int(self.n_points),
-            "seed": None if self.seed is None else int(self.seed),
-        }
+        return self.truth.to_dict()
 
     def write(self, touch_path, truth_path=None) -> None:
-        """Write the touch file and the ground-truth JSON.
+        """Write the touch file and, where asked, the ground-truth JSON; both atomically.
 
         Parameters
         ----------
@@ -126,24 +140,32 @@ class SimulatedTouch:
             The touch file, ``.csv`` or ``.json`` (format by suffix, see
             :meth:`TouchData.to_file`).
         truth_path : str or os.PathLike, optional
-            The truth JSON (:meth:`truth_dict`). Default: next to the touch file, named
-            ``<stem>.truth.json``.
+            The truth JSON (:func:`meshrec.io.truth.write_truth`). Without it no truth
+            file is written.
 
         Raises
         ------
+        TypeError
+            If a path is not a str or os.PathLike.
         ValueError
             If ``touch_path`` does not end in ``.csv`` or ``.json``, or ``truth_path`` is
             the same file as ``touch_path``.
+        OSError
+            If a file cannot be written.
         """
+        for value, label in ((touch_path, "touch_path"), (truth_path, "truth_path")):
+            if value is not None and not isinstance(value, (str, os.PathLike)):
+                raise TypeError(f"{label} must be a str or os.PathLike, got {type(value).__name__}")
         touch_path = Path(touch_path)
-        if truth_path is None:
-            truth_path = touch_path.with_name(touch_path.stem + ".truth.json")
-        truth_path = Path(truth_path)
-        if truth_path.resolve() == touch_path.resolve():
-            raise ValueError(f"truth_path must differ from touch_path, got {str(truth_path)!r}")
+        if truth_path is not None:
+            truth_path = Path(truth_path)
+            if truth_path.resolve() == touch_path.resolve():
+                raise ValueError(
+                    f"truth_path must differ from touch_path, got {one_line(truth_path)!r}"
+                )
         self.touch.to_file(touch_path)
-        truth_path.parent.mkdir(parents=True, exist_ok=True)
-        truth_path.write_text(json.dumps(self.truth_dict(), indent=2) + "\n", encoding="utf-8")
+        if truth_path is not None:
+            write_truth(truth_path, self.truth)
 
     def __repr__(self) -> str:
         return (
@@ -190,9 +212,10 @@ def simulate_touch(
         Randomness, through :func:`numpy.random.default_rng`. With None a fresh seed is
         drawn and recorded in the result, so every touch can be reproduced.
     n_points : int
-        Points per curve, odd and at least 5.
+        Points per curve, odd, at least 5 and at most ``defaults.SIM_MAX_POINTS``.
     noise : float
-        Half-width of the uniform noise per coordinate, model units, >= 0.
+        Half-width of the uniform noise per coordinate, model units, >= 0 and at most
+        ``defaults.SIM_MAX_NOISE_FRACTION * sqrt(mesh area)``.
     length : float, optional
         Arc length of each curve, model units. Default
         ``defaults.SIM_LENGTH_FRACTION * sqrt(mesh area)``.
@@ -209,33 +232,47 @@ def simulate_touch(
 
     Raises
     ------
+    TypeError
+        If ``mesh`` is neither a mesh, a path nor an object with vertices and faces (real
+        (V, 3) vertices, integer faces), or ``n_points`` is not an integer, ``noise`` or
+        ``length`` not a real number, ``contact`` not real numbers, ``rng`` neither a
+        Generator, an integer nor None, ``transform`` not a bool or ``name`` not a str
+        (the shared checks of :mod:`meshrec.io.checks`).
     ValueError
-        If ``n_points`` is not an odd integer >= 5, ``noise`` is negative or not finite,
-        ``length`` is not positive and finite, ``contact`` is not a finite (3,) vector or
-        lies farther than ``defaults.SIM_CONTACT_TOLERANCE * sqrt(area)`` from the mesh,
-        ``rng`` is a negative integer, the mesh file does not exist or the mesh has no
+        If ``n_points`` is not odd or not in 5..``defaults.SIM_MAX_POINTS``, ``noise`` is
+        negative, not finite or more than ``defaults.SIM_MAX_NOISE_FRACTION *
+        sqrt(area)``, ``length`` is not positive and finite, ``contact`` is not a finite
+        (3,) vector or lies farther than ``defaults.SIM_CONTACT_TOLERANCE * sqrt(area)``
+        from the mesh, ``rng`` is a negative integer, the mesh file does not exist or is
+        not a readable triangle mesh, the faces index missing vertices, the mesh has no
         area, the curves through a given contact are too short for ``length`` (near an
         open boundary, or a closed section shorter than ``length``) for every one of
         ``defaults.SIM_CONTACT_PLANE_TRIES`` plane triples, or no random contact out of
         ``defaults.SIM_MAX_TRIES`` admits curves of that length.
-    TypeError
-        If ``mesh`` is neither a mesh, a path nor an object with vertices and faces.
     """
     n_points = _check_n_points(n_points)
-    noise = _check_noise(noise)
+    noise = check_number(noise, "noise", minimum=0.0)
     if length is not None:
-        length = _check_length(length)
+        length = check_number(length, "length", positive=True)
     if contact is not None:
-        contact = _check_contact(contact)
+        contact = check_vector(contact, "contact")
     if not isinstance(transform, (bool, np.bool_)):
-        raise ValueError(f"transform must be True or False, got {transform!r}")
+        raise TypeError(f"transform must be True or False, got {one_line(transform)}")
+    if name is not None and not isinstance(name, str):
+        raise TypeError(f"name must be a str, got {type(name).__name__}")
     generator, seed = _make_rng(rng)
 
     tm, model_name = _resolve_mesh(mesh)
     if name is not None:
-        model_name = str(name)
+        model_name = name
     surface = _Surface(tm)
     scale = math.sqrt(surface.area)
+    if noise > defaults.SIM_MAX_NOISE_FRACTION * scale:
+        raise ValueError(
+            f"noise must be at most {defaults.SIM_MAX_NOISE_FRACTION} * sqrt(area) = "
+            f"{defaults.SIM_MAX_NOISE_FRACTION * scale:.6g} (defaults.SIM_MAX_NOISE_FRACTION), "
+            f"got {noise!r}"
+        )
     if length is None:
         length = defaults.SIM_LENGTH_FRACTION * scale
 
@@ -300,96 +337,20 @@ def simulate_touch(
 
 
 # ---------------------------------------------------------------------------- validation
-def _read_truth_file(path) -> dict:
-    """Read a truth JSON file written by ``meshrec simulate --truth``.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    dict
-        Its content (``model``, ``contact``, ``T_model_touch``, ...), not yet checked.
-
-    Raises
-    ------
-    ValueError
-        If the file cannot be read or is not JSON.
-    """
-    p = Path(path)
-    try:
-        return json.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ValueError(f"truth file {str(p)!r} cannot be read: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"truth file {str(p)!r} is not JSON: {exc.msg}") from None
-
-
-def _truth_point(value, where: str) -> np.ndarray:
-    """A truth's point (its ``contact``) as a finite (3,) array.
-
-    Raises
-    ------
-    ValueError
-        Naming ``where`` if ``value`` is not three finite numbers.
-    """
-    try:
-        c = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        c = None
-    if c is None or c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise ValueError(f"{where} must be 3 finite numbers, got {value!r}")
-    return c
-
-
 def _check_n_points(n_points) -> int:
-    """Return ``n_points`` as an int, or raise ValueError unless it is odd and >= 5."""
-    if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):
-        raise ValueError(f"n_points must be an odd integer >= 5, got {n_points!r}")
-    n = int(n_points)
-    if n < 5 or n % 2 == 0:
+    """``n_points`` as an int: odd, at least 5 and at most ``defaults.SIM_MAX_POINTS``.
+
+    Raises
+    ------
+    TypeError
+        If it is not an integer.
+    ValueError
+        If it is even or out of range.
+    """
+    n = check_int(n_points, "n_points", minimum=5, maximum=defaults.SIM_MAX_POINTS)
+    if n % 2 == 0:
         raise ValueError(f"n_points must be an odd integer >= 5, got {n}")
     return n
-
-
-def _as_float(value, name: str) -> float:
-    """Return ``value`` as a float or raise ValueError naming ``name``."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        return float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a number, got {value!r}") from exc
-
-
-def _check_noise(noise) -> float:
-    """Return ``noise`` as a float, or raise ValueError unless finite and >= 0."""
-    value = _as_float(noise, "noise")
-    if not math.isfinite(value) or value < 0:
-        raise ValueError(f"noise must be finite and >= 0, got {value!r}")
-    return value
-
-
-def _check_length(length) -> float:
-    """Return ``length`` as a float, or raise ValueError unless finite and > 0."""
-    value = _as_float(length, "length")
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"length must be finite and > 0, got {value!r}")
-    return value
-
-
-def _check_contact(contact) -> np.ndarray:
-    """Return ``contact`` as a (3,) float64 array, or raise ValueError."""
-    try:
-        arr = np.asarray(contact, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"contact must be 3 numbers, got {contact!r}") from exc
-    if arr.shape != (3,):
-        raise ValueError(f"contact must have shape (3,), got shape {arr.shape}: {contact!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"contact must be finite, got {arr.tolist()}")
-    return arr
 
 
 def _make_rng(rng) -> tuple[np.random.Generator, int | None]:
@@ -397,18 +358,8 @@ def _make_rng(rng) -> tuple[np.random.Generator, int | None]:
     if rng is None:
         seed = secrets.randbits(63)
         return np.random.default_rng(seed), seed
-    if isinstance(rng, (bool, np.bool_)):
-        raise ValueError(f"rng must be a numpy Generator, an int seed or None, got {rng!r}")
-    if isinstance(rng, (int, np.integer)):
-        if rng < 0:
-            raise ValueError(f"rng must be a non-negative int seed, got {int(rng)}")
-        return np.random.default_rng(int(rng)), int(rng)
-    try:
-        return np.random.default_rng(rng), None
-    except (TypeError, ValueError) as exc:
-        raise ValueError(
-            f"rng must be a numpy Generator, an int seed or None, got {rng!r}"
-        ) from exc
+    generator = check_rng(rng)
+    return generator, None if isinstance(rng, np.random.Generator) else int(rng)
 
 
 def _frozen(arr) -> np.ndarray:
@@ -425,18 +376,28 @@ def _resolve_mesh(mesh) -> tuple[trimesh.Trimesh, str]:
         return mesh, ""
     if isinstance(mesh, (str, os.PathLike)):
         path = Path(mesh)
+        label = f"mesh file {one_line(path)}"
         if not path.is_file():
-            raise ValueError(f"mesh file {str(path)!r} does not exist")
-        loaded = trimesh.load(path, force="mesh")
-        if not isinstance(loaded, trimesh.Trimesh):
-            raise ValueError(f"mesh file {str(path)!r} holds no triangle mesh")
+            raise ValueError(f"{label}: no such file (or not a regular file)")
+        try:
+            loaded = trimesh.load(path, force="mesh")
+        except Exception as exc:  # trimesh raises many kinds (NotImplementedError, KeyError, ...)
+            raise ValueError(
+                f"{label}: not a readable mesh ({type(exc).__name__}: {one_line(exc, 120)})"
+            ) from None
+        if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+            raise ValueError(f"{label}: holds no triangle mesh")
         return loaded, path.stem
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
-        tm = trimesh.Trimesh(
-            vertices=np.asarray(mesh.vertices, dtype=np.float64),
-            faces=np.asarray(mesh.faces, dtype=np.int64),
-            process=False,
-        )
+        vertices = check_points(mesh.vertices, "mesh.vertices")
+        faces = np.asarray(mesh.faces)
+        if faces.dtype.kind not in "iu":
+            raise TypeError(f"mesh.faces must be integers, got a {faces.dtype} array")
+        if faces.ndim != 2 or faces.shape[1] != 3:
+            raise ValueError(f"mesh.faces must be (m, 3), got {faces.shape}")
+        if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+            raise ValueError(f"mesh.faces must index the {len(vertices)} vertices")
+        tm = trimesh.Trimesh(vertices=vertices, faces=faces.astype(np.int64), process=False)
         label = getattr(mesh, "name", "")
         return tm, "" if label is None else str(label)
     raise TypeError(
@@ -488,8 +449,12 @@ class _Surface:
 def _closest_point(surface: _Surface, point: np.ndarray) -> tuple[np.ndarray, int, float]:
     """Return the closest point of the mesh to ``point``, its face and distance.
 
-    Brute force over all (non-degenerate) faces, vectorised (Ericson, Real-Time Collision
-    Detection, 5.1.5).
+    libigl's ``point_mesh_squared_distance`` on the faces within reach: the closest point
+    is no farther than the nearest vertex (distance d), so it lies on a face with a vertex
+    within d + the longest edge. On the bundled models (80,000 faces) this took 1.5 to 5
+    ms per query, against 13 to 45 ms for the vectorised brute force it replaces and 70
+    ms for libigl on the whole mesh (which builds its tree for every call); the distances
+    agreed to 1e-15.
 
     Parameters
     ----------
@@ -502,61 +467,20 @@ def _closest_point(surface: _Surface, point: np.ndarray) -> tuple[np.ndarray, in
     face : int
     distance : float
     """
-    a, b, c = surface.triangles[:, 0], surface.triangles[:, 1], surface.triangles[:, 2]
-    p = point[None, :]
-    ab, ac, ap = b - a, c - a, p - a
-    bp, cp = p - b, p - c
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        denom = va + vb + vc
-        v = vb / denom
-        w = vc / denom
-        out = a + ab * v[:, None] + ac * w[:, None]
-        # regions, applied from the lowest priority to the highest
-        bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-        wbc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        out[bc] = (b + (c - b) * wbc[:, None])[bc]
-        eac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        wac = d2 / (d2 - d6)
-        out[eac] = (a + ac * wac[:, None])[eac]
-        rc = (d6 >= 0) & (d5 <= d6)
-        out[rc] = c[rc]
-        eab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        vab = d1 / (d1 - d3)
-        out[eab] = (a + ab * vab[:, None])[eab]
-        rb = (d3 >= 0) & (d4 <= d3)
-        out[rb] = b[rb]
-        ra = (d1 <= 0) & (d2 <= 0)
-        out[ra] = a[ra]
-    dist = np.linalg.norm(out - p, axis=1)
-    dist[~np.isfinite(dist) | (surface.face_areas <= 0)] = np.inf
-    face = int(np.argmin(dist))
-    return out[face].copy(), face, float(dist[face])
+    d2 = np.einsum("ij,ij->i", surface.vertices - point, surface.vertices - point)
+    reach = math.sqrt(float(d2.min())) + surface.max_edge
+    near = d2 <= reach * reach * (1.0 + 1e-9)
+    faces = np.flatnonzero(near[surface.faces].any(axis=1) & (surface.face_areas > 0))
+    sq, index, closest = igl.point_mesh_squared_distance(
+        point[None, :], surface.vertices, surface.faces[faces]
+    )
+    return np.asarray(closest[0], dtype=np.float64), int(faces[int(index[0])]), math.sqrt(sq[0])
 
 
 def _random_rigid(rng: np.random.Generator, scale: float) -> np.ndarray:
     """Return a (4, 4) rigid motion: uniform rotation, translation uniform in [-scale, scale]^3."""
-    q = rng.standard_normal(4)
-    while np.linalg.norm(q) < 1e-12:  # pragma: no cover - probability zero
-        q = rng.standard_normal(4)
-    x, y, z, w = q / np.linalg.norm(q)
-    R = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
     T = np.eye(4)
-    T[:3, :3] = R
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
     T[:3, 3] = rng.uniform(-scale, scale, size=3)
     return T
 
@@ -643,6 +567,13 @@ def _section_curve(
     local_faces: np.ndarray,
 ) -> tuple[np.ndarray | None, str | None]:
     """Sample the section curve through ``c`` of the mesh and a plane through ``c``.
+
+    trimesh cuts the faces (``trimesh.intersections.mesh_plane``); the segments are
+    chained into the curve through ``c`` here, by hand, because trimesh's own chaining
+    (``Trimesh.section``, a Path3D) needs networkx, which meshrec does not depend on, and
+    its polylines (``Path3D.discrete``) hold only closed loops: an open section, on an
+    open patch, is left as "dangling" entities. Cutting and chaining three curves takes
+    12 ms on the bundled ellipsoid (81,920 faces).
 
     Parameters
     ----------
