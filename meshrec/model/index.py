@@ -21,6 +21,7 @@ the parameters and the package version.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import numbers
 import os
@@ -36,8 +37,8 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from meshrec import defaults
-from meshrec.model.cache import ArrayCache, CacheWarning, file_sha256, make_key
-from meshrec.model.mesh import check_mesh_path, load_mesh
+from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model_folder
+from meshrec.model.mesh import check_mesh_path, parse_mesh, read_mesh_file
 
 _ARRAYS = (
     "vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid", "edge_bulge"
@@ -459,9 +460,10 @@ class ModelIndex:
         Raises
         ------
         ValueError
-            If ``params`` is not an :class:`IndexParams`, or the file is missing, not a
-            file, or cannot be loaded as a triangle mesh (see
-            :func:`meshrec.model.mesh.load_mesh`).
+            If ``params`` is not an :class:`IndexParams`; the file is missing, not a
+            regular file, or cannot be loaded as a triangle mesh (see
+            :func:`meshrec.model.mesh.parse_mesh`); or the cache directory is the file's
+            folder (see :func:`meshrec.model.cache.refuse_model_folder`).
 
         Warns
         -----
@@ -475,7 +477,12 @@ class ModelIndex:
             raise ValueError(f"params must be an IndexParams or None, got {params!r}")
         p = check_mesh_path(path)
         cache = ArrayCache(cache_dir)
-        key = make_key(file_sha256(p), dataclasses.asdict(params), kind="model-index")
+        refuse_model_folder(cache.directory, p.parent, subfolders=False)
+        # One read: the key hashes exactly the bytes that are parsed (a file replaced
+        # between a hash and a second read would store one content under another's key).
+        data = read_mesh_file(p)
+        digest = hashlib.sha256(data).hexdigest()
+        key = make_key(digest, dataclasses.asdict(params), kind="model-index")
         index = None
         if not force:
             arrays = cache.load(key, _ARRAYS + _SCALARS, label=p.stem)
@@ -491,7 +498,8 @@ class ModelIndex:
         if index is None:
             say = stage if stage is not None else (lambda what: None)
             say("loading the mesh")
-            vertices, faces = load_mesh(p)
+            vertices, faces = parse_mesh(data, p)
+            data = None  # the bytes of a large STL are large: not kept through the build
             say("curvature")
             arrays = _build_arrays(vertices, faces, params)
             say("writing the cache")

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import io
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -67,17 +69,52 @@ def check_mesh_path(path: str | os.PathLike) -> Path:
     return p
 
 
+def read_mesh_file(path: str | os.PathLike) -> bytes:
+    """Read a mesh file's bytes, once, without ever opening anything but a regular file.
+
+    The file is opened non-blocking and checked with ``fstat`` on the open descriptor, so
+    a pipe or device put in the file's place after :func:`check_mesh_path` looked at it is
+    refused rather than blocking the reader. Hash and parse these same bytes (see
+    :func:`parse_mesh`): reading the file twice could pair one content's hash with
+    another's mesh if the file changes in between.
+
+    Parameters
+    ----------
+    path : str or path-like
+        An STL, OBJ, PLY or OFF file (see :data:`MESH_SUFFIXES`).
+
+    Returns
+    -------
+    bytes
+        The file's content.
+
+    Raises
+    ------
+    ValueError
+        If ``path`` does not pass :func:`check_mesh_path`, is not a regular file when
+        opened, or cannot be read.
+    """
+    p = check_mesh_path(path)
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError as exc:
+        raise ValueError(f"cannot read file {str(p)!r}: {exc}") from exc
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise ValueError(f"mesh file {str(p)!r} is not a regular file")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            return f.read()
+    except OSError as exc:
+        raise ValueError(f"cannot read file {str(p)!r}: {exc}") from exc
+    finally:
+        os.close(fd)
+
+
 def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Load a triangle mesh and clean it.
 
-    The file is read with trimesh (unprocessed), checked, and cleaned: vertices closer than
-    ``defaults.MESH_MERGE_FRACTION`` of the bounding-box diagonal are merged, degenerate
-    faces (repeated vertices or zero height), duplicate faces (whatever their winding) and
-    unreferenced vertices are dropped, and the winding is made consistent across every
-    edge shared by two faces (so that vertex normals do not cancel where an exporter
-    flipped some faces). A closed component (every edge shared by exactly two faces) is
-    turned outward if it was inside out; open components keep their orientation. Several
-    components, open boundaries and non-manifold edges are accepted.
+    Reads the file once (:func:`read_mesh_file`) and parses those bytes with
+    :func:`parse_mesh`; see there for the cleaning.
 
     Parameters
     ----------
@@ -94,23 +131,73 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     ValueError
-        If ``path`` does not exist, is a directory, has an unsupported ending, is empty or
-        unreadable, cannot be parsed (e.g. a truncated STL: the message says so), holds
-        no triangles (e.g. a point cloud) or only degenerate ones, has malformed arrays
-        (a vertex without three coordinates, a face index out of range), or has
-        non-finite coordinates in a face.
+        If ``path`` does not exist, is a directory or not a regular file, has an
+        unsupported ending, is unreadable, or its content is refused by
+        :func:`parse_mesh`.
     """
     p = check_mesh_path(path)
+    return parse_mesh(read_mesh_file(p), p)
+
+
+def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Parse a mesh file's bytes and clean the mesh.
+
+    The bytes are parsed with trimesh (unprocessed, from memory: nothing else is opened,
+    in particular no OBJ material library, which could name a pipe or a device; only the
+    geometry is used), checked, and cleaned: vertices closer than
+    ``defaults.MESH_MERGE_FRACTION`` of the bounding-box diagonal are merged, degenerate
+    faces (repeated vertices or zero height), duplicate faces (whatever their winding) and
+    unreferenced vertices are dropped, and the winding is made consistent across every
+    edge shared by two faces (so that vertex normals do not cancel where an exporter
+    flipped some faces). A closed component (every edge shared by exactly two faces) is
+    turned outward if it was inside out; open components keep their orientation. Several
+    components, open boundaries and non-manifold edges are accepted.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content, e.g. from :func:`read_mesh_file`.
+    path : str or path-like
+        The file's name: its ending gives the format (see :data:`MESH_SUFFIXES`), and
+        messages name it. The file is not opened.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+        C-contiguous vertex positions, every one of them used by some face.
+    faces : (m, 3) int64
+        C-contiguous vertex indices of the triangles, ``m >= 1``.
+
+    Raises
+    ------
+    TypeError
+        If ``data`` is not bytes.
+    ValueError
+        If the ending is unsupported, ``data`` is empty, cannot be parsed (e.g. a
+        truncated STL: the message says so), holds no triangles (e.g. a point cloud) or
+        only degenerate ones, has malformed arrays (a vertex without three coordinates, a
+        face index out of range), or has non-finite coordinates in a face.
+    """
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise TypeError(f"data must be bytes, got {type(data).__name__}")
+    p = Path(path)
     where = f"mesh file {str(p)!r}"
-    try:
-        size = p.stat().st_size
-    except OSError as exc:
-        raise ValueError(f"{where} cannot be read ({exc.strerror})") from exc
-    if size == 0:
-        raise ValueError(f"{where} is empty (0 bytes)")
     suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise ValueError(
+            f"{where} has unsupported ending {p.suffix!r}; "
+            f"expected one of {', '.join(MESH_SUFFIXES)}"
+        )
+    data = bytes(data)
+    if len(data) == 0:
+        raise ValueError(f"{where} is empty (0 bytes)")
+    # From memory, without a resolver: trimesh then opens no other file; skip_materials
+    # also keeps the OBJ reader from parsing material libraries at all.
+    extra = {"skip_materials": True} if suffix == ".obj" else {}
     try:
-        loaded = trimesh.load(str(p), file_type=suffix[1:], process=False)
+        loaded = trimesh.load(
+            io.BytesIO(data), file_type=suffix[1:], process=False, **extra
+        )
         if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
             clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
             if clouds and len(clouds) == len(loaded.geometry):
@@ -118,7 +205,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             else:
                 loaded = loaded.to_mesh()
     except Exception as exc:  # trimesh raises many types on malformed input
-        why = _stl_problem(p) if suffix == ".stl" else None
+        why = _stl_problem(data) if suffix == ".stl" else None
         detail = why if why is not None else f"{type(exc).__name__}: {exc}"
         raise ValueError(f"{where} could not be read: {detail}") from exc
     if isinstance(loaded, trimesh.PointCloud):
@@ -131,7 +218,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     vertices = np.asarray(loaded.vertices)
     faces = np.asarray(loaded.faces)
     if len(faces) == 0:
-        why = _stl_problem(p) if suffix == ".stl" else None
+        why = _stl_problem(data) if suffix == ".stl" else None
         if why is not None:
             raise ValueError(f"{where} could not be read: {why}")
         raise ValueError(
@@ -150,7 +237,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         )
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    del loaded  # with its caches: a million-face STL holds several hundred MB
+    del loaded, data  # with its caches: a million-face STL holds several hundred MB
     if not np.isfinite(vertices).all():
         vertices, faces = _compact(vertices, faces)  # unused non-finite vertices are harmless
         if not np.isfinite(vertices).all():
@@ -161,8 +248,13 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(vertices), np.ascontiguousarray(faces)
 
 
-def _stl_problem(path: Path) -> str | None:
+def _stl_problem(data: bytes) -> str | None:
     """Why an STL file that trimesh could not use is broken, if its layout tells.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content.
 
     Returns
     -------
@@ -170,14 +262,9 @@ def _stl_problem(path: Path) -> str | None:
         A description (a binary STL shorter than its header announces, an ASCII STL
         without its closing ``endsolid``), or None if the layout looks complete.
     """
-    try:
-        size = path.stat().st_size
-        with open(path, "rb") as fh:
-            head = fh.read(84)
-            fh.seek(max(size - 512, 0))
-            tail = fh.read()
-    except OSError:
-        return None
+    size = len(data)
+    head = data[:84]
+    tail = data[max(size - 512, 0) :]
     binary_size = 84 + 50 * int.from_bytes(head[80:84], "little") if len(head) == 84 else None
     if binary_size == size:
         return None
