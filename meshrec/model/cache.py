@@ -36,6 +36,15 @@ import numpy as np
 
 from meshrec._version import __version__
 
+__all__ = [
+    "ArrayCache",
+    "CacheWarning",
+    "default_cache_dir",
+    "file_sha256",
+    "make_key",
+    "refuse_model_folder",
+]
+
 #: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
 #: cleaned and oriented by meshrec.model.mesh before indexing).
 _FORMAT = 3

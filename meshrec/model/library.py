@@ -12,6 +12,8 @@ from meshrec.model.cache import default_cache_dir, refuse_model_folder
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
 
+__all__ = ["LibraryWarning", "ModelLibrary", "ProgressCallback", "bundled_models_dir"]
+
 #: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed, and
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
 ProgressCallback = Callable[[int, int, str], None]

@@ -1,24 +1,175 @@
-"""Loading and cleaning triangle meshes from STL, OBJ, PLY and OFF files."""
+"""Triangle meshes: loading and cleaning STL, OBJ, PLY and OFF files, and the cleaned mesh
+with its per-mesh data (:class:`MeshData`)."""
 
 from __future__ import annotations
 
+import functools
 import io
+import math
 import os
 import stat
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+import igl
 import numpy as np
 import trimesh
 from scipy import sparse
 from scipy.sparse import csgraph
 
 from meshrec import defaults
+from meshrec.model._arrays import readonly
+
+__all__ = [
+    "MESH_SUFFIXES",
+    "MeshData",
+    "check_mesh_path",
+    "is_mesh_file",
+    "load_mesh",
+    "parse_mesh",
+    "read_mesh_file",
+]
 
 #: Faces per chunk of the signed-volume sum (bounds its temporary memory).
 _CHUNK = 1 << 18
 
 #: File endings accepted as mesh files (compared case-insensitively).
 MESH_SUFFIXES: tuple[str, ...] = (".stl", ".obj", ".ply", ".off")
+
+
+@dataclass(frozen=True, eq=False)
+class MeshData:
+    """A cleaned triangle mesh with its per-mesh data. The arrays are read-only.
+
+    Build it from cleaned arrays with :meth:`from_arrays` (which computes the derived
+    fields); the constructor takes every field, e.g. from the cache.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+    vertex_normals : (n, 3) float64
+        Unit normals following the face winding (libigl's per-vertex normals); zero where
+        undefined.
+    closed : bool
+        Whether the mesh is watertight.
+    scale : float
+        ``sqrt(surface area)``, model units.
+    avg_edge : float
+        Mean edge length, model units.
+    face_normals : (m, 3) float64
+        Unit face normals following the winding (derived; zero for degenerate faces).
+    normal_ok : (n,) bool
+        Where the vertex normal is defined (derived: non-zero).
+
+    Raises
+    ------
+    ValueError
+        If the arrays' shapes do not agree, there is no face, or a face index is out of
+        range.
+    """
+
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
+    vertex_normals: np.ndarray = field(repr=False)
+    closed: bool
+    scale: float
+    avg_edge: float
+    face_normals: np.ndarray = field(init=False, repr=False)
+    normal_ok: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        def put(name, value):
+            object.__setattr__(self, name, value)
+
+        V = readonly(self.vertices, np.float64, (None, 3), "vertices")
+        n = len(V)
+        F = readonly(self.faces, np.int64, (None, 3), "faces")
+        if len(F) == 0:
+            raise ValueError("faces must hold at least one triangle, got shape (0, 3)")
+        if F.min() < 0 or F.max() >= n:
+            raise ValueError(
+                f"faces must index vertices 0..{n - 1}, got range {F.min()}..{F.max()}"
+            )
+        put("vertices", V)
+        put("faces", F)
+        N = readonly(self.vertex_normals, np.float64, (n, 3), "vertex_normals")
+        put("vertex_normals", N)
+        put("closed", bool(self.closed))
+        put("scale", float(self.scale))
+        put("avg_edge", float(self.avg_edge))
+        face_normals = igl.per_face_normals(V, F, np.zeros(3))
+        face_normals.setflags(write=False)
+        put("face_normals", face_normals)
+        ok = np.any(N != 0.0, axis=1)
+        ok.setflags(write=False)
+        put("normal_ok", ok)
+
+    @classmethod
+    def from_arrays(cls, vertices: np.ndarray, faces: np.ndarray) -> MeshData:
+        """The mesh data of cleaned arrays (e.g. from :func:`load_mesh`).
+
+        Parameters
+        ----------
+        vertices : (n, 3) float
+        faces : (m, 3) int
+
+        Returns
+        -------
+        MeshData
+
+        Raises
+        ------
+        ValueError
+            If the shapes are wrong, there is no face or a face index is out of range.
+        """
+        V = readonly(vertices, np.float64, (None, 3), "vertices")
+        F = readonly(faces, np.int64, (None, 3), "faces")
+        if len(F) == 0:
+            raise ValueError("faces must hold at least one triangle, got shape (0, 3)")
+        if F.min() < 0 or F.max() >= len(V):
+            raise ValueError(
+                f"faces must index vertices 0..{len(V) - 1}, got range {F.min()}..{F.max()}"
+            )
+        V = np.ascontiguousarray(V)
+        F = np.ascontiguousarray(F)
+        return cls(
+            vertices=V,
+            faces=F,
+            vertex_normals=_vertex_normals(V, F),
+            closed=bool(trimesh.Trimesh(V, F, process=False).is_watertight),
+            scale=math.sqrt(_surface_area(V, F)),
+            avg_edge=float(igl.avg_edge_length(V, F)),
+        )
+
+    def __reduce__(self):
+        # Rebuilt through the constructor: the arrays come back read-only.
+        args = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        return (functools.partial(type(self), **args), ())
+
+    def __repr__(self) -> str:
+        return (
+            f"MeshData(vertices={len(self.vertices)}, faces={len(self.faces)}, "
+            f"closed={self.closed}, scale={self.scale:.6g}, avg_edge={self.avg_edge:.6g})"
+        )
+
+
+def _surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Total area of the triangles."""
+    tri = vertices[faces]
+    return 0.5 * float(
+        np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
+
+
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex normals following the face winding; zero where undefined."""
+    normals = igl.per_vertex_normals(vertices, faces)
+    norm = np.linalg.norm(normals, axis=1)
+    ok = np.isfinite(norm) & (norm > 0)
+    normals[ok] /= norm[ok, None]
+    normals[~ok] = 0.0
+    return normals
 
 
 def is_mesh_file(path: str | os.PathLike) -> bool:
