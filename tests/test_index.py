@@ -648,3 +648,35 @@ def test_barycentric_matches_a_least_squares_twin_and_clips():
     # a degenerate face: equal weights
     assert np.allclose(surface._barycentric(V[:1], np.array([1])), 1.0 / 3.0)
     assert surface._barycentric(np.zeros((0, 3)), np.zeros(0, dtype=np.int64)).shape == (0, 3)
+
+
+class _CountingBackend:
+    """Another surface backend: satisfies SurfaceQuery without inheriting from anything."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.calls = 0
+
+    def closest_points(self, points):
+        self.calls += 1
+        return self.inner.closest_points(points)
+
+    def interpolated_normals(self, closest, face):
+        return self.inner.interpolated_normals(closest, face)
+
+    def smooth_offsets(self, closest, face):
+        return self.inner.smooth_offsets(closest, face)
+
+    def smooth_offsets_and_gradients(self, closest, face):
+        return self.inner.smooth_offsets_and_gradients(closest, face)
+
+
+def test_another_surface_backend_can_replace_the_default(sphere_index):
+    backend = _CountingBackend(sphere_index.surface)
+    assert isinstance(backend, SurfaceQuery)
+    other = dataclasses.replace(sphere_index, surface=backend)
+    P = np.array([[0.0, 0.0, 3.0]])
+    assert np.array_equal(other.closest_points(P)[0], sphere_index.closest_points(P)[0])
+    assert backend.calls == 1
+    with pytest.raises(TypeError, match="surface must be an AabbSurface to be cached"):
+        other.to_record()
