@@ -203,6 +203,26 @@ def _same_models(a: ModelLibrary, b: ModelLibrary) -> None:
         )
 
 
+#: A child that indexes the folder again and again (rebuilding every time), so that a kill
+#: at any moment after its imports lands in the middle of some indexing stage.
+_INDEX_FOREVER = (
+    "import sys, warnings\n"
+    "from meshrec import ModelLibrary\n"
+    "warnings.simplefilter('ignore')\n"
+    "while True:\n"
+    "    ModelLibrary.from_folder(sys.argv[1], cache_dir=sys.argv[2], force=True)\n"
+)
+
+
+def _entries_load_cleanly(cache: Path) -> None:
+    """Every entry under its final name is complete (writes are atomic)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for entry in cache.glob("*.npz"):
+            label, key = entry.stem.rsplit("-", 1)
+            assert ArrayCache(cache).load(key, [], label=label) is not None, entry.name
+
+
 @pytest.mark.slow
 def test_indexing_runs_killed_at_random_moments_leave_a_cache_the_next_run_repairs(tmp_path):
     models = _models(tmp_path / "models")
@@ -210,16 +230,21 @@ def test_indexing_runs_killed_at_random_moments_leave_a_cache_the_next_run_repai
     env = _env()
     rng = np.random.default_rng(15)
     args = [*cli_command(), "index", "--models", str(models), "--cache-dir", str(cache)]
-    for i in range(5):
+    for i in range(8):
+        if i % 2:  # the real command (a first build, or a forced rebuild)
+            child = [*args, *(["--force"] if i % 4 == 3 else [])]
+            delay = rng.uniform(0.3, 3.0)
+        else:  # rebuilding in a loop: killed mid-indexing, sometimes mid-write
+            child = [sys.executable, "-c", _INDEX_FOREVER, str(models), str(cache)]
+            delay = rng.uniform(0.8, 2.5)
         proc = subprocess.Popen(
-            [*args, *(["--force"] if i % 2 else [])],
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
+            child, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
-        time.sleep(rng.uniform(0.5, 4.0))
+        time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
+        if cache.exists():
+            _entries_load_cleanly(cache)
     # Whatever the kills left, plus a temporary file of a writer that certainly died
     # mid-write, the next run must end with a correct cache and no temporary file.
     cache.mkdir(exist_ok=True)
