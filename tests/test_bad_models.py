@@ -304,7 +304,7 @@ def test_open_boundary(tmp_path):
     assert not idx.closed
     inner = idx.vertices[:, 2] > 0.3  # away from the rim, where the ball is one-sided
     _radius_1_curvature_ok(idx, inner)
-    assert np.isfinite(idx._kdtree.data).all()
+    assert np.isfinite(idx.curvature._kdtree.data).all()
 
 
 def test_non_manifold_edge(tmp_path):
@@ -373,7 +373,7 @@ def test_libigl_failures_do_not_poison_the_table(tmp_path):
     assert not lib["tet"].valid.any()
     ball = lib["ball"]
     assert (~ball.valid).sum() == 3
-    assert np.isfinite(ball._kdtree.data).all()
+    assert np.isfinite(ball.curvature._kdtree.data).all()
     rec = recognize(simulate_touch(_sphere(), rng=2).touch, lib)
     assert rec.best.model == "ball"
     tet = next(r for r in rec.ranking if r.model == "tet")

@@ -10,9 +10,13 @@ import pytest
 import trimesh
 
 from meshrec import defaults
-from meshrec.model import index as index_mod
+from meshrec.model import curvature as curvature_mod
 from meshrec.model.cache import CacheWarning
+from meshrec.model.curvature import CurvatureTable
 from meshrec.model.index import IndexParams, ModelIndex
+from meshrec.model.mesh import MeshData
+from meshrec.model.record import IndexRecord
+from meshrec.model.surface import AabbSurface, SurfaceQuery
 
 
 # ----------------------------------------------------------------------------- meshes
@@ -148,8 +152,9 @@ def test_flipped_winding_flips_the_sign():
     # see tests/test_bad_models.py, so the inside-out sphere is built from arrays here).
     mesh = trimesh.creation.icosphere(subdivisions=3)
     mesh.invert()
-    arrays = index_mod._build_arrays(mesh.vertices, mesh.faces, IndexParams())
-    k1, k2 = arrays["k1"], arrays["k2"]
+    data = MeshData.from_arrays(mesh.vertices, mesh.faces)
+    table = CurvatureTable.from_mesh(data, IndexParams().radius_edges(data.scale, data.avg_edge))
+    k1, k2 = table.k1, table.k2
     H, K = 0.5 * (k1 + k2), k1 * k2
     assert np.all(k1 < 0)
     assert np.allclose(H, -1.0, rtol=0.02)
@@ -201,7 +206,7 @@ def test_bad_vertices_stay_out_of_the_table(tmp_path):
     assert idx.valid[~island].all()
     assert np.isnan(idx.K[island]).all()
     assert not idx.closed
-    table = idx._kdtree.data
+    table = idx.curvature._kdtree.data
     assert np.isfinite(table).all()
     assert len(table) == idx.valid.sum()
     everything = idx.lookup(0.0, 0.0, np.inf, np.inf)
@@ -213,11 +218,11 @@ def test_dangling_vertex_does_not_crash_libigl():
     sphere = trimesh.creation.icosphere(subdivisions=2)
     V = np.vstack([sphere.vertices, [[5.0, 5.0, 5.0]]])
     F = np.ascontiguousarray(sphere.faces, dtype=np.int64)
-    k1, k2, d1, _, valid = index_mod._curvatures(V, F, 2)
+    k1, k2, d1, _, valid = curvature_mod._curvatures(V, F, 2)
     assert not valid[-1]
     assert valid[:-1].all()
     assert np.isnan(k1[-1])
-    clean = index_mod._curvatures(np.ascontiguousarray(V[:-1]), F, 2)
+    clean = curvature_mod._curvatures(np.ascontiguousarray(V[:-1]), F, 2)
     assert np.array_equal(k1[:-1], clean[0])
     assert np.array_equal(k2[:-1], clean[1])
     assert np.array_equal(d1[-1], np.zeros(3))
@@ -254,7 +259,7 @@ def test_lookup_matches_brute_force(ellipsoid_index):
 def test_lookup_on_a_flat_model(tmp_path):
     # median |H| is 0 on a box: the K axis falls back to 1 / scale.
     idx = _index(tmp_path, trimesh.creation.box().subdivide().subdivide(), "box")
-    assert np.isclose(idx._kh_scale, idx.scale / 2)
+    assert np.isclose(idx.curvature.kh_scale, idx.mesh.scale / 2)
     assert np.array_equal(idx.lookup(0.0, 0.0, 1e-9, 1e-9), _brute(idx, 0.0, 0.0, 1e-9, 1e-9))
     assert len(idx.lookup(0.0, 0.0, 1e-9, 1e-9)) > 0
 
@@ -307,7 +312,7 @@ def test_closest_points_near_a_sphere(sphere_index):
     # each closest point lies on its face
     fn = n[face] / np.linalg.norm(n[face], axis=1, keepdims=True)
     assert np.abs(np.einsum("ij,ij->i", closest - tri[face, 0], fn)).max() < 1e-12
-    w = idx._barycentric(closest, face)
+    w = idx.surface._barycentric(closest, face)
     assert np.allclose(np.einsum("ni,nij->nj", w, tri[face]), closest, atol=1e-12)
     # no points: empty answers
     d0, c0, f0 = idx.closest_points(np.zeros((0, 3)))
@@ -369,15 +374,17 @@ def test_cached_load_is_equal_and_flagged(tmp_path):
     assert not first.from_cache
     assert second.from_cache
     assert second.build_seconds == first.build_seconds
-    for f in dataclasses.fields(ModelIndex):
-        if f.name.startswith("_") or f.name in ("from_cache", "load_seconds"):
-            continue
-        a, b = getattr(first, f.name), getattr(second, f.name)
+    a_rec, b_rec = first.to_record(), second.to_record()
+    for name in IndexRecord.names():
+        a, b = getattr(a_rec, name), getattr(b_rec, name)
         if isinstance(a, np.ndarray):
             assert a.dtype == b.dtype
-            assert np.array_equal(a, b, equal_nan=True), f.name
+            assert np.array_equal(a, b, equal_nan=True), name
         else:
-            assert a == b, f.name
+            assert a == b, name
+    assert np.array_equal(first.mesh.face_normals, second.mesh.face_normals)
+    assert np.array_equal(first.curvature.table_vertices, second.curvature.table_vertices)
+    assert first.curvature.kh_scale == second.curvature.kh_scale
     assert second.name == "ball"
     assert len(list((tmp_path / "cache").iterdir())) == 1
     assert not second.vertices.flags.writeable
@@ -412,14 +419,15 @@ def test_cached_edge_bulges_are_those_of_the_vertex_normals(tmp_path):
     _index(tmp_path, mesh, "can")
     idx = ModelIndex.from_file(tmp_path / "can.stl", cache_dir=tmp_path / "cache")
     assert idx.from_cache
-    fresh = dataclasses.replace(idx, edge_bulge=None)
-    assert np.array_equal(fresh.edge_bulge, idx.edge_bulge)
+    fresh = AabbSurface.from_mesh(idx.mesh, idx.params.crease_angle_deg)
+    bulge = idx.surface.edge_bulge
+    assert np.array_equal(fresh.edge_bulge, bulge)
     # The rims are creases (90 deg between side and cap normals): no bulge there; the
     # side's edges around the circle bulge outwards by chord^2 / (8 r), up to rounding.
-    assert np.count_nonzero(idx.edge_bulge == 0.0) > 0
-    assert idx.edge_bulge.max() > 0.0
-    with pytest.raises(ValueError, match="edge_bulge"):
-        dataclasses.replace(idx, edge_bulge=np.zeros((3, 3)))
+    assert np.count_nonzero(bulge == 0.0) > 0
+    assert bulge.max() > 0.0
+    with pytest.raises(ValueError, match=r"edge_bulge must have shape \(\d+, 3\), got \(3, 3\)"):
+        AabbSurface(mesh=idx.mesh, edge_bulge=np.zeros((3, 3)))
 
 
 def test_corrupt_cache_file_warns_and_rebuilds(tmp_path):
@@ -504,20 +512,98 @@ def test_from_file_errors(tmp_path):
         ModelIndex.from_file(tmp_path / "bad.stl", cache_dir=tmp_path / "cache")
 
 
-def test_constructor_checks_shapes(sphere_index):
-    base = {f.name: getattr(sphere_index, f.name) for f in dataclasses.fields(ModelIndex) if f.init}
+def test_record_checks_shapes(sphere_index):
+    base = {n: getattr(sphere_index.to_record(), n) for n in IndexRecord.names()}
     n = len(base["vertices"])
     with pytest.raises(ValueError, match=rf"k2 must have shape \({n},\), got \(3,\)"):
-        ModelIndex(**{**base, "k2": np.zeros(3)})
+        IndexRecord(**{**base, "k2": np.zeros(3)})
     with pytest.raises(ValueError, match=r"vertices must have shape \(n, 3\), got \(5,\)"):
-        ModelIndex(**{**base, "vertices": np.zeros(5)})
+        IndexRecord(**{**base, "vertices": np.zeros(5)})
     with pytest.raises(ValueError, match="faces must hold at least one triangle"):
-        ModelIndex(**{**base, "faces": np.zeros((0, 3), dtype=np.int64)})
+        IndexRecord(**{**base, "faces": np.zeros((0, 3), dtype=np.int64)})
     with pytest.raises(ValueError, match=rf"faces must index vertices 0..{n - 1}, got range"):
-        ModelIndex(**{**base, "faces": base["faces"] + 1})
-    copy = ModelIndex(**base)
+        IndexRecord(**{**base, "faces": base["faces"] + 1})
+    with pytest.raises(ValueError, match=r"edge_bulge must have shape \(\d+, 3\)"):
+        IndexRecord(**{**base, "edge_bulge": np.zeros((2, 3))})
+    arrays = IndexRecord(**base).to_arrays()
+    with pytest.raises(ValueError, match=r"arrays must hold \['valid'\]"):
+        IndexRecord.from_arrays({k: v for k, v in arrays.items() if k != "valid"})
+    with pytest.raises(ValueError, match=r"scale must be a single number, got float64 \(2,\)"):
+        IndexRecord.from_arrays({**arrays, "scale": np.zeros(2)})
+    copy = ModelIndex.from_record(sphere_index.path, sphere_index.params, IndexRecord(**base))
     box = (0.25, 0.5, 0.01, 0.01)
     assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))
+
+
+def test_parts_check_their_inputs(sphere_index):
+    mesh, table = sphere_index.mesh, sphere_index.curvature
+    n = len(mesh.vertices)
+    with pytest.raises(ValueError, match=rf"vertex_normals must have shape \({n}, 3\), got \(2,"):
+        MeshData(mesh.vertices, mesh.faces, np.zeros((2, 3)), True, 1.0, 0.1)
+    with pytest.raises(ValueError, match="faces must index vertices"):
+        MeshData.from_arrays(mesh.vertices[:3], mesh.faces)
+    with pytest.raises(ValueError, match="faces must hold at least one triangle"):
+        MeshData.from_arrays(mesh.vertices, np.zeros((0, 3), dtype=np.int64))
+    with pytest.raises(ValueError, match=rf"dir1 must have shape \({n}, 3\), got \(3,\)"):
+        CurvatureTable(table.k1, table.k2, np.zeros(3), table.dir2, table.valid, 2, 0.1, 1.0)
+    with pytest.raises(ValueError, match=r"scale must be finite and > 0, got 0\.0"):
+        CurvatureTable(table.k1, table.k2, table.dir1, table.dir2, table.valid, 2, 0.1, 0.0)
+    with pytest.raises(TypeError, match="mesh must be a MeshData, got Trimesh"):
+        CurvatureTable.from_mesh(trimesh.creation.box(), 2)
+    with pytest.raises(ValueError, match="radius_edges must be an integer >= 1, got 0"):
+        CurvatureTable.from_mesh(mesh, 0)
+    with pytest.raises(TypeError, match="mesh must be a MeshData, got str"):
+        AabbSurface.from_mesh("ball", 60.0)
+    with pytest.raises(ValueError, match=r"crease_angle_deg must be in \(0, 180\]"):
+        AabbSurface.from_mesh(mesh, 0.0)
+    small = MeshData.from_arrays(*(np.asarray(a) for a in (mesh.vertices[:3], [[0, 1, 2]])))
+    small_table = CurvatureTable.from_mesh(small, 1)
+    with pytest.raises(ValueError, match=rf"curvature must have one entry per mesh vertex \({n}\)"):
+        dataclasses.replace(sphere_index, curvature=small_table)
+    with pytest.raises(TypeError, match="surface must be a SurfaceQuery, got str"):
+        dataclasses.replace(sphere_index, surface="fast")
+    with pytest.raises(TypeError, match="record must be an IndexRecord, got dict"):
+        ModelIndex.from_record(sphere_index.path, sphere_index.params, {})
+
+
+def test_the_parts_and_the_delegating_names_agree(sphere_index):
+    idx = sphere_index
+    assert isinstance(idx.surface, SurfaceQuery)
+    assert idx.vertices is idx.mesh.vertices
+    assert idx.faces is idx.mesh.faces
+    assert idx.vertex_normals is idx.mesh.vertex_normals
+    assert idx.face_normals is idx.mesh.face_normals
+    assert (idx.closed, idx.scale, idx.avg_edge) == (
+        idx.mesh.closed,
+        idx.mesh.scale,
+        idx.mesh.avg_edge,
+    )
+    for name in ("k1", "k2", "dir1", "dir2", "valid", "K", "H"):
+        assert getattr(idx, name) is getattr(idx.curvature, name)
+    assert idx.radius_edges == idx.curvature.radius_edges
+    assert idx.curvature_radius == idx.curvature.curvature_radius
+    P = np.array([[0.0, 0.0, 3.0], [1.0, 1.0, 0.5]])
+    dist, closest, face = idx.closest_points(P)
+    for a, b in zip((dist, closest, face), idx.surface.closest_points(P), strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(
+        idx.interpolated_normals(closest, face), idx.surface.interpolated_normals(closest, face)
+    )
+    assert np.array_equal(
+        idx.smooth_offsets(closest, face), idx.surface.smooth_offsets(closest, face)
+    )
+    h, g = idx.smooth_offsets_and_gradients(closest, face)
+    h2, g2 = idx.surface.smooth_offsets_and_gradients(closest, face)
+    assert np.array_equal(h, h2)
+    assert np.array_equal(g, g2)
+    box = (0.25, 0.5, 0.01, 0.01)
+    assert np.array_equal(idx.lookup(*box), idx.curvature.lookup(*box))
+    with pytest.raises(AttributeError):
+        idx.vertices = idx.vertices  # read-only
+    assert "sphere" in repr(idx)
+    assert "MeshData(" in repr(idx.mesh)
+    assert "CurvatureTable(" in repr(idx.curvature)
+    assert "AabbSurface(" in repr(idx.surface)
 
 
 def test_pickle_roundtrip_rebuilds_the_trees(sphere_index):
@@ -530,3 +616,67 @@ def test_pickle_roundtrip_rebuilds_the_trees(sphere_index):
         assert np.array_equal(a, b)
     box = (0.25, 0.5, 0.01, 0.01)
     assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))
+    assert not copy.vertices.flags.writeable
+    assert not copy.curvature.K.flags.writeable
+    h, g = copy.smooth_offsets_and_gradients(*sphere_index.closest_points(P)[1:])
+    h0, g0 = sphere_index.smooth_offsets_and_gradients(*sphere_index.closest_points(P)[1:])
+    assert np.array_equal(h, h0)
+    assert np.array_equal(g, g0)
+
+
+def test_barycentric_matches_a_least_squares_twin_and_clips():
+    # Twin: the coordinates solving a + v (b - a) + u (c - a) = p in least squares.
+    rng = np.random.default_rng(11)
+    V = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.1], [0.3, 1.5, -0.2], [1.0, 0.0, 0.05]])
+    F = np.array([[0, 1, 2], [0, 3, 1]])  # the second face is degenerate (collinear)
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    mesh = MeshData(V, F, normals, False, 1.0, 1.0)
+    surface = AabbSurface(mesh=mesh, edge_bulge=np.zeros((2, 3)))
+    w_in = rng.dirichlet([1.0, 1.0, 1.0], size=50)
+    p = w_in @ V[F[0]]
+    got = surface._barycentric(p, np.zeros(50, dtype=np.int64))
+    M = np.column_stack([V[1] - V[0], V[2] - V[0]])
+    vu = np.linalg.lstsq(M, (p - V[0]).T, rcond=None)[0].T
+    twin = np.column_stack([1.0 - vu.sum(axis=1), vu])
+    assert np.allclose(got, twin, atol=1e-12)
+    assert np.allclose(got, w_in, atol=1e-12)
+    # outside the triangle: clipped to it, still summing to 1
+    out = surface._barycentric(np.array([[-1.0, -1.0, 0.0], [5.0, 5.0, 0.0]]), np.zeros(2, int))
+    assert (out >= 0).all()
+    assert np.allclose(out.sum(axis=1), 1.0)
+    assert np.allclose(out[0], [1.0, 0.0, 0.0])
+    # a degenerate face: equal weights
+    assert np.allclose(surface._barycentric(V[:1], np.array([1])), 1.0 / 3.0)
+    assert surface._barycentric(np.zeros((0, 3)), np.zeros(0, dtype=np.int64)).shape == (0, 3)
+
+
+class _CountingBackend:
+    """Another surface backend: satisfies SurfaceQuery without inheriting from anything."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.calls = 0
+
+    def closest_points(self, points):
+        self.calls += 1
+        return self.inner.closest_points(points)
+
+    def interpolated_normals(self, closest, face):
+        return self.inner.interpolated_normals(closest, face)
+
+    def smooth_offsets(self, closest, face):
+        return self.inner.smooth_offsets(closest, face)
+
+    def smooth_offsets_and_gradients(self, closest, face):
+        return self.inner.smooth_offsets_and_gradients(closest, face)
+
+
+def test_another_surface_backend_can_replace_the_default(sphere_index):
+    backend = _CountingBackend(sphere_index.surface)
+    assert isinstance(backend, SurfaceQuery)
+    other = dataclasses.replace(sphere_index, surface=backend)
+    P = np.array([[0.0, 0.0, 3.0]])
+    assert np.array_equal(other.closest_points(P)[0], sphere_index.closest_points(P)[0])
+    assert backend.calls == 1
+    with pytest.raises(TypeError, match="surface must be an AabbSurface to be cached"):
+        other.to_record()

@@ -158,3 +158,22 @@ def test_error_non_finite_vertices(tmp_path, monkeypatch):
     monkeypatch.setattr(mesh_mod.trimesh, "load", lambda *a, **k: bad)
     with pytest.raises(ValueError, match=r"nan\.obj.*non-finite"):
         load_mesh(path)
+
+
+def test_parse_mesh_parses_the_bytes_it_is_given(tmp_path, sphere):
+    path = tmp_path / "ball.ply"
+    sphere.export(path)
+    data = path.read_bytes()
+    path.unlink()  # the name only gives the format: the file is not opened
+    V, F = mesh_mod.parse_mesh(data, path)
+    assert len(F) == len(sphere.faces)
+    assert np.allclose(np.sort(V, axis=0), np.sort(sphere.vertices, axis=0))
+
+
+def test_parse_mesh_errors(tmp_path):
+    with pytest.raises(TypeError, match="data must be bytes, got str"):
+        mesh_mod.parse_mesh("v 0 0 0", tmp_path / "x.obj")
+    with pytest.raises(ValueError, match=r"x\.glb' has unsupported ending '\.glb'"):
+        mesh_mod.parse_mesh(b"glTF", tmp_path / "x.glb")
+    with pytest.raises(ValueError, match=r"x\.stl' is empty \(0 bytes\)"):
+        mesh_mod.parse_mesh(b"", tmp_path / "x.stl")

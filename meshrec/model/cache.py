@@ -9,6 +9,11 @@ moved into place with :func:`os.replace`, so readers never see a half-written en
 concurrent writers of the same key both succeed (the last one wins, with equal content).
 A cache directory that cannot be created or written is warned about once per operation
 and the computation carries on uncached.
+
+Temporary files carry the writer's host name and process id. A writer killed mid-write
+leaves its temporary file behind; the next :class:`ArrayCache` that loads or saves in the
+folder removes it once its writer is gone (a dead process on this host) or it is older
+than ``_STALE_TEMP_SECONDS``. A file a live process is writing is never touched.
 """
 
 from __future__ import annotations
@@ -18,7 +23,10 @@ import hashlib
 import json
 import os
 import re
+import socket
+import stat
 import tempfile
+import time
 import warnings
 import zipfile
 from collections.abc import Iterable, Mapping
@@ -28,6 +36,15 @@ import numpy as np
 
 from meshrec._version import __version__
 
+__all__ = [
+    "ArrayCache",
+    "CacheWarning",
+    "default_cache_dir",
+    "file_sha256",
+    "make_key",
+    "refuse_model_folder",
+]
+
 #: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
 #: cleaned and oriented by meshrec.model.mesh before indexing).
 _FORMAT = 3
@@ -35,6 +52,16 @@ _KEY_NAME = "__cache_key__"
 _CHECKSUM_NAME = "__cache_checksum__"
 _RESERVED = (_KEY_NAME, _CHECKSUM_NAME)
 _CHUNK = 1 << 20
+#: A temporary file this old is abandoned whoever wrote it (also one of another host,
+#: whose process cannot be checked): writing a cache entry takes seconds (a 1M-face
+#: model's ~200 MB entry), and a writer keeps the file's mtime fresh as it goes.
+_STALE_TEMP_SECONDS = 600.0
+#: ``.<entry stem>.<host>.<pid>.<random>.tmp``; the stem ends with the 64-hex key. Older
+#: versions wrote ``.<entry stem>.<random>.tmp`` (no host or pid: age decides).
+_TEMP_RE = re.compile(
+    r"\.(?P<stem>(?:.*-)?[0-9a-f]{64})\.(?:(?P<host>[A-Za-z0-9_-]+)\.(?P<pid>[0-9]+)\.)?"
+    r"[A-Za-z0-9_]+\.tmp"
+)
 
 
 class CacheWarning(UserWarning):
@@ -136,6 +163,116 @@ def _checksum(arrays: Mapping[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
+def _host() -> str:
+    """This machine's name as it appears in temporary file names."""
+    return re.sub(r"[^A-Za-z0-9_-]+", "_", socket.gethostname())[:30] or "host"
+
+
+def _temp_prefix(stem: str) -> str:
+    """The prefix of a temporary file of the entry ``stem`` written by this process."""
+    return f".{stem}.{_host()}.{os.getpid()}."
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this host (a zombie counts as alive)."""
+    if pid == os.getpid():
+        return True
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. PermissionError: it exists, owned by someone else
+        return True
+    return True
+
+
+def _abandoned(name: str, mtime: float, now: float) -> bool:
+    """Whether the file ``name`` is a temporary file of this cache that nobody will finish."""
+    m = _TEMP_RE.fullmatch(name)
+    if m is None:
+        return False
+    if now - mtime > _STALE_TEMP_SECONDS:
+        return True
+    if m["pid"] is None or m["host"] != _host():
+        return False  # age alone decides
+    return not _pid_alive(int(m["pid"]))
+
+
+def _check_npz_sizes(path: Path) -> str | None:
+    """Why the arrays of an ``.npz`` file cannot be what their headers declare, if so.
+
+    Each array's header declares its dtype and shape; the data that follows in the zip
+    member must be exactly that many bytes. Checked before :func:`numpy.load` allocates
+    the array, so a corrupt header declaring a huge shape is refused rather than raising
+    MemoryError (or allocating gigabytes).
+
+    Returns
+    -------
+    str or None
+        The problem, or None if every array's size agrees with its header.
+    """
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            with zf.open(info) as f:
+                version = np.lib.format.read_magic(f)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                elif version == (2, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                else:
+                    return f"{info.filename}: unsupported .npy version {version}"
+                header = f.tell()
+            if dtype.hasobject:
+                return f"{info.filename}: object arrays are not cache arrays"
+            want = dtype.itemsize
+            for d in shape:
+                want *= int(d)
+            have = info.file_size - header
+            if want != have:
+                return (
+                    f"{info.filename}: its header declares {dtype} {shape} ({want} bytes), "
+                    f"the file holds {have} bytes"
+                )
+    return None
+
+
+def refuse_model_folder(
+    cache_dir: str | os.PathLike, model_folder: str | os.PathLike, subfolders: bool = True
+) -> None:
+    """Refuse a cache directory that would write cache files among the models.
+
+    Parameters
+    ----------
+    cache_dir : str or path-like
+        The cache directory (need not exist).
+    model_folder : str or path-like
+        The folder of the model files.
+    subfolders : bool
+        Also refuse a cache directory inside ``model_folder``.
+
+    Raises
+    ------
+    ValueError
+        If ``cache_dir`` is ``model_folder`` (after resolving links and ``..``), or inside
+        it when ``subfolders``; the message names both.
+    """
+    cache = Path(os.path.realpath(cache_dir))
+    folder = Path(os.path.realpath(model_folder))
+    if cache == folder:
+        raise ValueError(
+            f"cache_dir {str(cache_dir)!r} is the model folder {str(model_folder)!r}; "
+            "the cache must not be written among the models: choose another cache folder"
+        )
+    if subfolders and folder in cache.parents:
+        raise ValueError(
+            f"cache_dir {str(cache_dir)!r} is inside the model folder "
+            f"{str(model_folder)!r}; the cache must not be written among the models: "
+            "choose a cache folder outside it"
+        )
+
+
 def _safe_label(label: str) -> str:
     """A file-name-safe version of ``label`` (at most 40 characters)."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", label)[:40].strip(".") or "entry"
@@ -152,6 +289,7 @@ class ArrayCache:
 
     def __init__(self, directory: str | os.PathLike | None = None) -> None:
         self.directory = Path(directory) if directory is not None else default_cache_dir()
+        self._swept = False
 
     def __repr__(self) -> str:
         return f"ArrayCache({str(self.directory)!r})"
@@ -207,13 +345,18 @@ class ArrayCache:
             If ``key`` is not a hex string.
         """
         path = self.path_for(key, label)
+        self._sweep()
         if not path.is_file():
             return None
         try:
-            with np.load(path, allow_pickle=False) as npz:
-                arrays = {name: npz[name] for name in npz.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
-            self._warn(f"cache file {str(path)!r} is unreadable ({type(exc).__name__}: {exc})")
+            problem = _check_npz_sizes(path)
+            if problem is None:
+                with np.load(path, allow_pickle=False) as npz:
+                    arrays = {name: npz[name] for name in npz.files}
+        except Exception as exc:  # whatever a corrupt file raises (even MemoryError): a miss
+            problem = f"{type(exc).__name__}: {exc}"
+        if problem is not None:
+            self._warn(f"cache file {str(path)!r} is unreadable ({problem})")
             return None
         stored_key = arrays.pop(_KEY_NAME, None)
         stored_sum = arrays.pop(_CHECKSUM_NAME, None)
@@ -265,8 +408,9 @@ class ArrayCache:
         tmp_name = None
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
+            self._sweep()
             fd, tmp_name = tempfile.mkstemp(
-                prefix=f".{path.stem}.", suffix=".tmp", dir=self.directory
+                prefix=_temp_prefix(path.stem), suffix=".tmp", dir=self.directory
             )
             with os.fdopen(fd, "wb") as f:
                 np.savez(f, **payload)
@@ -286,6 +430,30 @@ class ArrayCache:
                 with contextlib.suppress(OSError):
                     os.unlink(tmp_name)
         return path
+
+    def _sweep(self) -> None:
+        """Remove abandoned temporary files of killed writers (once per instance).
+
+        Best effort: a folder that cannot be listed, or a file that cannot be removed (or
+        was removed by another sweeper), is left alone.
+        """
+        if self._swept:
+            return
+        self._swept = True
+        now = time.time()
+        try:
+            entries = list(os.scandir(self.directory))
+        except OSError:
+            return
+        for entry in entries:
+            if not entry.name.endswith(".tmp"):
+                continue
+            try:
+                st = entry.stat(follow_symlinks=False)
+                if stat.S_ISREG(st.st_mode) and _abandoned(entry.name, st.st_mtime, now):
+                    os.unlink(entry.path)
+            except OSError:
+                continue
 
     def _fsync_dir(self) -> None:
         """Flush the directory entry of a finished write (best effort, POSIX only)."""

@@ -8,8 +8,11 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshrec.model.cache import default_cache_dir, refuse_model_folder
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
+
+__all__ = ["LibraryWarning", "ModelLibrary", "ProgressCallback", "bundled_models_dir"]
 
 #: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed, and
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
@@ -78,8 +81,9 @@ class ModelLibrary:
         ------
         ValueError
             If ``folder`` does not exist, is not a directory or cannot be listed, holds no
-            mesh file, or none of its mesh files can be loaded; or ``params`` is not an
-            IndexParams.
+            mesh file, or none of its mesh files can be loaded; ``params`` is not an
+            IndexParams; or the cache directory is ``folder`` or inside it (see
+            :func:`meshrec.model.cache.refuse_model_folder`).
 
         Warns
         -----
@@ -94,6 +98,7 @@ class ModelLibrary:
             raise ValueError(f"model folder {str(root)!r} does not exist")
         if not root.is_dir():
             raise ValueError(f"model folder {str(root)!r} is not a directory")
+        refuse_model_folder(cache_dir if cache_dir is not None else default_cache_dir(), root)
         try:
             entries = sorted(p for p in root.iterdir() if p.is_file())
         except OSError as exc:
@@ -146,8 +151,9 @@ class ModelLibrary:
         Raises
         ------
         ValueError
-            If ``paths`` is empty or a string, none of the files can be loaded, or
-            ``params`` is not an IndexParams.
+            If ``paths`` is empty or a string, none of the files can be loaded,
+            ``params`` is not an IndexParams, or the cache directory is the folder of one
+            of the files.
 
         Warns
         -----
@@ -162,6 +168,9 @@ class ModelLibrary:
         files = [Path(p) for p in paths]
         if not files:
             raise ValueError("paths must name at least one mesh file, got none")
+        cache = cache_dir if cache_dir is not None else default_cache_dir()
+        for parent in dict.fromkeys(p.parent for p in files):
+            refuse_model_folder(cache, parent, subfolders=False)
         return cls._build(None, files, params, cache_dir, force, progress, what="the given files")
 
     @classmethod

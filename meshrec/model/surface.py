@@ -1,0 +1,365 @@
+"""Surface queries on a model: distance, closest point, the smooth normal field and the
+smooth surface the local search works on.
+
+:class:`SurfaceQuery` is the small interface the registration uses (a
+:class:`typing.Protocol`, so that a faster backend can replace the default without
+inheriting from it); :class:`AabbSurface` is the default, answering closest-point queries
+with libigl's AABB tree over the triangles (built when it is created or unpickled; never
+cached or pickled).
+
+The smooth surface: the flat triangles of a mesh of a curved surface lie inside or outside
+it by up to a sagitta, so the distance to the flat faces ripples with the faces, and those
+ripples make spurious local minima of the registration error. A quadratic patch per face
+over its edges' bulges (see ``_edge_bulges``), continuous across edges, removes most of the
+deviation: the signed distance to the smooth surface is the signed distance to the face
+minus the patch's height.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field, fields
+from typing import Protocol, runtime_checkable
+
+import igl
+import numpy as np
+
+from meshrec.model._arrays import readonly
+from meshrec.model.mesh import MeshData
+
+__all__ = ["AabbSurface", "SurfaceQuery", "edge_bulges"]
+
+
+@runtime_checkable
+class SurfaceQuery(Protocol):
+    """What the registration asks of a model's surface.
+
+    Face indices are those of the model's :class:`~meshrec.model.mesh.MeshData`, so that
+    per-face data (e.g. ``mesh.face_normals[face]``) applies to the answers.
+    """
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(dist (n,), closest (n, 3), face (n,) int64)`` of query points ``(n, 3)``."""
+        ...
+
+    def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Unit normals ``(n, 3)`` of the smooth normal field at points on faces."""
+        ...
+
+    def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Heights ``(n,)`` of the smooth surface above the faces at points on them."""
+        ...
+
+    def smooth_offsets_and_gradients(
+        self, closest: np.ndarray, face: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The heights ``(n,)`` and their gradients ``(n, 3)`` along the faces."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class AabbSurface:
+    """The default :class:`SurfaceQuery`: libigl's AABB tree and the smooth surface.
+
+    Build it with :meth:`from_mesh`; the constructor takes the cached bulge table.
+
+    Attributes
+    ----------
+    mesh : MeshData
+        The mesh queried.
+    edge_bulge : (m, 3) float64
+        Per face and edge (01, 12, 20), the smooth surface's bulge (see ``_edge_bulges``);
+        read-only.
+
+    Raises
+    ------
+    TypeError
+        If ``mesh`` is not a :class:`MeshData`.
+    ValueError
+        If ``edge_bulge`` is not ``(m, 3)`` for the mesh's ``m`` faces.
+    """
+
+    mesh: MeshData
+    edge_bulge: np.ndarray = field(repr=False)
+    _aabb: igl.AABB = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.mesh, MeshData):
+            raise TypeError(f"mesh must be a MeshData, got {type(self.mesh).__name__}")
+        bulge = readonly(self.edge_bulge, np.float64, (len(self.mesh.faces), 3), "edge_bulge")
+        object.__setattr__(self, "edge_bulge", bulge)
+        aabb = igl.AABB()
+        aabb.init(self.mesh.vertices, self.mesh.faces)
+        object.__setattr__(self, "_aabb", aabb)
+
+    @classmethod
+    def from_mesh(cls, mesh: MeshData, crease_angle_deg: float) -> AabbSurface:
+        """The surface queries of a mesh, its bulges computed from the vertex normals.
+
+        Parameters
+        ----------
+        mesh : MeshData
+        crease_angle_deg : float
+            Adjacent vertex normals further apart than this (degrees) mark a crease, where
+            the faces do not bulge (e.g. ``IndexParams.crease_angle_deg``).
+
+        Returns
+        -------
+        AabbSurface
+
+        Raises
+        ------
+        TypeError
+            If ``mesh`` is not a :class:`MeshData`.
+        """
+        return cls(mesh=mesh, edge_bulge=edge_bulges(mesh, crease_angle_deg))
+
+    def __reduce__(self):
+        # The AABB tree cannot be pickled: it is rebuilt.
+        args = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        return (functools.partial(type(self), **args), ())
+
+    def __repr__(self) -> str:
+        return f"AabbSurface(faces={len(self.mesh.faces)})"
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest points on the mesh (unsigned Euclidean distance), via the AABB tree.
+
+        Parameters
+        ----------
+        points : (n, 3) float
+            Query points, model coordinates.
+
+        Returns
+        -------
+        dist : (n,) float64
+            Unsigned distances to the surface.
+        closest : (n, 3) float64
+            The closest surface points.
+        face : (n,) int64
+            The face each closest point lies on.
+
+        Raises
+        ------
+        ValueError
+            If ``points`` is not an (n, 3) array of finite numbers.
+        """
+        P = np.ascontiguousarray(points, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ValueError(f"points must have shape (n, 3), got {P.shape}")
+        if not np.isfinite(P).all():
+            raise ValueError("points must be finite, got NaN or inf")
+        sqr, face, closest = self._aabb.squared_distance(self.mesh.vertices, self.mesh.faces, P)
+        return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
+
+    def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Height of the smooth surface implied by the vertex normals above the flat faces.
+
+        The signed distance to the smooth surface is the signed distance to the face minus
+        this height (see the module's description).
+
+        Parameters
+        ----------
+        closest : (n, 3) float
+            Points on the faces, e.g. from :meth:`closest_points`.
+        face : (n,) int
+            The face of each point.
+
+        Returns
+        -------
+        (n,) float64
+            Heights along the face normals, model units.
+        """
+        return self.smooth_offsets_and_gradients(closest, face)[0]
+
+    def smooth_offsets_and_gradients(
+        self, closest: np.ndarray, face: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`smooth_offsets` and their gradients along the faces.
+
+        Not checked (this runs at every residual evaluation of the searches): pass the
+        answers of :meth:`closest_points`.
+
+        Parameters
+        ----------
+        closest : (n, 3) float
+            Points on the faces.
+        face : (n,) int
+            The face of each point.
+
+        Returns
+        -------
+        heights : (n,) float64
+            As :meth:`smooth_offsets`.
+        gradients : (n, 3) float64
+            Gradient of the height as the point moves in its face's plane.
+        """
+        f = np.asarray(face, dtype=np.int64)
+        w = self._barycentric(np.asarray(closest, dtype=np.float64), f)
+        d = self.edge_bulge[f]
+        w0, w1, w2 = w.T
+        d0, d1, d2 = d.T
+        heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
+        # dh/dw_i chained with the barycentric gradients in the face plane.
+        dh = np.column_stack([d0 * w1 + d2 * w2, d0 * w0 + d1 * w2, d1 * w1 + d2 * w0])
+        gradients = np.einsum("ni,nij->nj", dh, self._face_table()["grads"][f])
+        return heights, gradients
+
+    def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """The smooth normal field at points on faces: barycentric vertex-normal blend.
+
+        Parameters
+        ----------
+        closest : (n, 3) float
+            Points on (or near) the faces, e.g. from :meth:`closest_points`.
+        face : (n,) int
+            The face of each point.
+
+        Returns
+        -------
+        (n, 3) float64
+            Unit normals. Barycentric weights are clipped to the triangle; where the blend
+            vanishes the face's own normal is used.
+
+        Raises
+        ------
+        ValueError
+            If the shapes disagree or a face index is out of range.
+        """
+        P = np.ascontiguousarray(closest, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ValueError(f"closest must have shape (n, 3), got {P.shape}")
+        f = np.asarray(face)
+        if f.shape != (len(P),):
+            raise ValueError(f"face must have shape ({len(P)},), got {f.shape}")
+        if f.size and not np.issubdtype(f.dtype, np.integer):
+            raise ValueError(f"face must hold integers, got dtype {f.dtype}")
+        f = f.astype(np.int64, copy=False)
+        mesh = self.mesh
+        m = len(mesh.faces)
+        if f.size and (f.min() < 0 or f.max() >= m):
+            raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
+        tri = mesh.faces[f]  # (n, 3)
+        w = self._barycentric(P, f)
+        normals = np.einsum("ni,nij->nj", w, mesh.vertex_normals[tri])
+        norm = np.linalg.norm(normals, axis=1)
+        bad = ~(norm > 1e-12)
+        if bad.any():
+            a, b, c = (mesh.vertices[tri[bad, i]] for i in range(3))
+            fn = np.cross(b - a, c - a)
+            normals[bad] = fn
+            norm[bad] = np.linalg.norm(fn, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normals /= norm[:, None]
+        return np.nan_to_num(normals, nan=0.0)
+
+    def _face_table(self) -> dict:
+        """Per-face corners, degeneracy and barycentric gradients, computed on first use.
+
+        (Not at load time: the cached load stays fast, and only registrations need them.)
+        """
+        table = self.__dict__.get("_faces_cache")
+        if table is None:
+            V, F = self.mesh.vertices, self.mesh.faces
+            a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+            v0, v1 = b - a, c - a
+            d00 = np.einsum("ij,ij->i", v0, v0)
+            d01 = np.einsum("ij,ij->i", v0, v1)
+            d11 = np.einsum("ij,ij->i", v1, v1)
+            den = d00 * d11 - d01 * d01
+            ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
+            # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex
+            # i, counter-clockwise (zero on degenerate faces).
+            n = _cross(v0, v1)
+            nn = np.einsum("ij,ij->i", n, n)
+            inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
+            grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
+            grads *= inv[:, :, None]
+            table = {"a": a, "b": b, "c": c, "ok": ok, "grads": grads}
+            self.__dict__["_faces_cache"] = table
+        return table
+
+    def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
+
+        libigl's ``barycentric_coordinates`` on the tabulated corners (measured, timeit
+        median of 15 repeats on a 20480-face sphere: 12.2 us for 64 points and 81.5 us for
+        1000, against 16.4 us and 110 us for the former hand-written formula on
+        tabulated per-face dot products, and 32 us / 135 us for trimesh's
+        ``points_to_barycentric``). Degenerate faces get 1/3 each.
+        """
+        t = self._face_table()
+        if len(f) == 0:
+            return np.zeros((0, 3))
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        w = igl.barycentric_coordinates(p, t["a"][f], t["b"][f], t["c"][f])
+        w[~t["ok"][f]] = 1.0 / 3.0
+        w = np.clip(w, 0.0, None)
+        return w / w.sum(axis=1, keepdims=True)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays.
+
+    Hand-written: measured faster than ``np.cross`` (timeit median of 15 repeats: 4.5 us
+    against 19.1 us for 64 rows, 139 us against 167 us for 20480 rows).
+    """
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def edge_bulges(mesh: MeshData, crease_angle_deg: float) -> np.ndarray:
+    """The smooth surface's bulge per face and edge, from the mesh's vertex normals.
+
+    Parameters
+    ----------
+    mesh : MeshData
+    crease_angle_deg : float
+        Edges whose vertex normals differ by more than this (degrees) are creases, with
+        no bulge.
+
+    Returns
+    -------
+    (m, 3) float64
+        Read-only; per face, edges 01, 12, 20 (see ``_edge_bulges``).
+
+    Raises
+    ------
+    TypeError
+        If ``mesh`` is not a :class:`MeshData`.
+    ValueError
+        If ``crease_angle_deg`` is not in (0, 180].
+    """
+    if not isinstance(mesh, MeshData):
+        raise TypeError(f"mesh must be a MeshData, got {type(mesh).__name__}")
+    a = float(crease_angle_deg)
+    if not 0 < a <= 180:
+        raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {crease_angle_deg!r}")
+    return _edge_bulges(mesh.vertices, mesh.faces, mesh.vertex_normals, a)
+
+
+def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray, crease_deg: float) -> np.ndarray:
+    """Per face and edge (01, 12, 20), the bulge d_ij = (p_j - p_i) . (n_j - n_i) / 2.
+
+    The quadratic patch h(b) = sum b_i b_j d_ij over a face's edges, with b its barycentric
+    coordinates, is the height of the smooth surface above the flat face that its vertex
+    normals imply (on a circle of radius R through two vertices L apart it gives the
+    sagitta L^2 / (8 R) at the middle of the edge), and it agrees across shared edges. An
+    edge whose normals differ by more than ``crease_deg`` degrees
+    (``defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG`` by default) is a
+    crease (a rim between a side and a flat cap), where a smooth surface is not implied:
+    its bulge is zero.
+    """
+    out = np.zeros((len(F), 3))
+    cos_max = np.cos(np.radians(crease_deg))
+    for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
+        pi, pj = V[F[:, i]], V[F[:, j]]
+        ni, nj = N[F[:, i]], N[F[:, j]]
+        d = 0.5 * np.einsum("ij,ij->i", pj - pi, nj - ni)
+        smooth = np.einsum("ij,ij->i", ni, nj) >= cos_max
+        out[:, k] = np.where(smooth, d, 0.0)
+    out.setflags(write=False)
+    return out
