@@ -91,10 +91,9 @@ SEARCH_PATIENCE = 3
 SEARCH_IMPROVEMENT = 0.01
 #: ... but only once the best mean distance is within this factor of the noise RMS that
 #: the curve fits estimate (a right superposition leaves 0.80 to 0.87 of it: Gaussian to
-#: uniform noise; a near miss on the crossed trough, seed 4, left 1.07), or is more than
-#: RIVAL_RATIO times a rival model's error (it cannot win the recognition).
+#: uniform noise; a near miss on the crossed trough, seed 4, left 1.07). The rule looks at
+#: one model's searches only, so that no model's result depends on another's.
 SEARCH_GOOD_FIT = 1.0
-RIVAL_RATIO = 2.0
 #: The local-search results (best by their subsample error) given the final rigid
 #: refinement on all the points. All of them: at the noise floor the 64-point subsample
 #: misranks basins whose errors differ by a few percent (100 seeded touches per paper
@@ -128,8 +127,11 @@ STEEPEST_MAX_ITER = 300
 REFINE_MAX_ITER = 30
 #: The final refinement stops when the error improves by less than this fraction.
 REFINE_REL_TOL = 1e-6
-#: Local-search results closer than this fraction of the half-length are the same minimum.
-DUPLICATE_FRACTION = 0.05
+#: Two refined poses whose contacts are closer than this fraction of the curves'
+#: half-length ... (Registration.poses keeps one of them, the better)
+POSE_DUPLICATE_FRACTION = 0.05
+#: ... and whose rotations differ by at most this angle, degrees, are the same minimum.
+POSE_DUPLICATE_ANGLE_DEG = 1.0
 #: The default local-search method: "lm" (least squares on charts) or "steepest" (the paper's).
 SEARCH_METHOD = "lm"
 
