@@ -123,10 +123,34 @@ CHART_MAX_EVALS = 30
 CHART_TOL = 1e-5
 #: Iterations of the paper's steepest descent (reference method) at most.
 STEEPEST_MAX_ITER = 300
+#: The steepest descent works in (u / half-length, v / half-length, phi): its first step
+#: is this long in those units (5% of the half-length, or 0.05 rad) ...
+STEEPEST_STEP = 0.05
+#: ... its gradient is a central difference with this step (in the same units) ...
+STEEPEST_FD_STEP = 1e-5
+#: ... its backtracking line search halves the step (STEEPEST_SHRINK) until the Armijo
+#: condition E1 < E0 - STEEPEST_ARMIJO * step * |grad| holds (the usual 1e-4), giving up
+#: below STEEPEST_MIN_STEP; after an accepted step the next starts STEEPEST_GROW times
+#: longer. It stops when E improves by less than STEEPEST_REL_TOL (a fraction). These are
+#: the values the reference method was written with; the default method is "lm".
+STEEPEST_MIN_STEP = 1e-7
+STEEPEST_ARMIJO = 1e-4
+STEEPEST_SHRINK = 0.5
+STEEPEST_GROW = 1.5
+STEEPEST_REL_TOL = 1e-7
 #: Iterations of the final rigid (6-DOF) refinement at most.
 REFINE_MAX_ITER = 30
 #: The final refinement stops when the error improves by less than this fraction.
 REFINE_REL_TOL = 1e-6
+#: Levenberg-Marquardt damping of the rigid refinement (relative to diag(J^T J)): the
+#: first iteration's, the factor it grows by after a rejected step (and shrinks by after
+#: an accepted one), the largest tried before giving up (no step reduces the error), and
+#: the least it shrinks to. The start and factor are Numerical Recipes' (mrqmin: 1e-3,
+#: times or divided by 10); the bounds only stop the loop.
+REFINE_DAMPING = 1e-3
+REFINE_DAMPING_FACTOR = 10.0
+REFINE_MAX_DAMPING = 1e8
+REFINE_MIN_DAMPING = 1e-9
 #: Two refined poses whose contacts are closer than this fraction of the curves'
 #: half-length ... (Registration.poses keeps one of them, the better)
 POSE_DUPLICATE_FRACTION = 0.05

@@ -21,6 +21,10 @@ from meshrec.registration.transform import apply_transform
 
 __all__ = ["Refinement", "refine_rigid"]
 
+#: Added to diag(A) before damping: a numerical guard against a singular system, not a
+#: tuning value (far below any squared residual gradient, which are of order 1).
+_DIAG_FLOOR = 1e-12
+
 
 @dataclass(frozen=True)
 class Refinement:
@@ -71,7 +75,7 @@ def refine_rigid(
     T = np.array(T_model_touch, dtype=np.float64)
     res = residuals(model, apply_transform(T, points))
     cost = float(res.values @ res.values)
-    lam = 1e-3
+    lam = defaults.REFINE_DAMPING
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (it is reported)
         y = apply_transform(T, points)
@@ -83,8 +87,10 @@ def refine_rigid(
         A = J.T @ J
         b = -J.T @ res.values
         accepted = False
-        while lam < 1e8:
-            step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), b)
+        while lam < defaults.REFINE_MAX_DAMPING:
+            # Marquardt's scaling of the damping by diag(A); the floor keeps the system
+            # regular for a column that vanishes (e.g. all gradients parallel).
+            step = np.linalg.solve(A + lam * np.diag(np.diag(A) + _DIAG_FLOOR), b)
             w, t = step[:3] * spread, step[3:]
             D = np.eye(4)
             D[:3, :3] = Rotation.from_rotvec(w).as_matrix()
@@ -95,12 +101,12 @@ def refine_rigid(
             if cost_new < cost:
                 accepted = True
                 break
-            lam *= 10.0
+            lam *= defaults.REFINE_DAMPING_FACTOR
         if not accepted:
             break
         improvement = (cost - cost_new) / max(cost, 1e-300)
         T, res, cost = T_new, res_new, cost_new
-        lam = max(lam / 10.0, 1e-9)
+        lam = max(lam / defaults.REFINE_DAMPING_FACTOR, defaults.REFINE_MIN_DAMPING)
         if improvement < rel_tol:
             break
     absval = np.abs(res.values)
