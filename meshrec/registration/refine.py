@@ -6,6 +6,18 @@ search has converged, the full rigid transform is refined by Levenberg-Marquardt
 (Gauss-Newton with damping) on the same signed point-to-surface residuals, with their
 analytic Jacobian: for a point y with residual gradient g, a small rotation w about the
 points' centroid m and translation t change the residual by g . (w x (y - m) + t).
+
+Why hand-written rather than scipy's ``least_squares(method="lm")`` (measured on the 1081
+refinements of registrations of 32 seeded touches, 4 per bundled paper surface and
+object, best of 5 runs on a shared 2-core machine): scipy with the same residuals and
+Jacobian is *not* slower: 3.58 ms against 4.18 ms per final refinement (13.6 residual
+evaluations against 18.0: this loop ends by raising the damping until it gives up), with
+the same median RMS (relative difference 3e-9). (The screenings, capped at 3 iterations,
+do not compare: scipy's cap counts evaluations.) It is kept because swapping it changes the
+results: over 64 seeded recognitions (seeds 0-7 per bundled shape) the winner stayed the
+same, but the reported contact moved on 39 of them (mostly to a symmetric twin of equal
+error on the cylinders, the sphere and the ellipsoid) and the error changed by -5.1% to
++0.9%. Replacing it is a behaviour change to validate on the full benchmark first.
 """
 
 from __future__ import annotations

@@ -286,9 +286,38 @@ def register(
     )
     clock.lap("lookup")
     if len(cands) == 0:
+        stages = RegistrationTrace(candidates=cands)
+        return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
+    brackets = phi_brackets(model, cands)
+    clock.lap("phi")
+    screening = screen_candidates(model, cands, brackets)
+    clock.lap("screen")
+    chosen = screening.candidates[:searches]
+    phis = refine_phis(model, cands, brackets, chosen)
+    clock.lap("phi")
+    starts = [(i, p.phi) for i, p in zip(chosen, phis, strict=True)]
+    runs = search_candidates(model, cands, starts, method=method)
+    clock.lap("search")
+    refined = refine_searches(model, cands, runs)
+    hypotheses = pose_hypotheses(model, cands, runs, refined)
+    clock.lap("refine")
+    stages = RegistrationTrace(cands, brackets, screening, phis, runs, refined, hypotheses)
+    return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
+
+
+def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float, clock):
+    """The Registration the stages' outputs make (the best distinct pose reported)."""
+    cands = stages.candidates
+    common = dict(
+        model=model.name,
+        path=str(model.path),
+        seconds=seconds,
+        times=StageTimes(**clock.seconds),
+        trace=stages if trace else None,
+    )
+    if len(cands) == 0:
+        g = cands.geometry
         return Registration(
-            model=model.name,
-            path=str(model.path),
             error=None,
             contact=None,
             normal=None,
@@ -297,33 +326,12 @@ def register(
             candidates=0,
             raw_hits=0,
             searches=0,
-            seconds=time.perf_counter() - t_start,
-            times=StageTimes(**clock.seconds),
-            reason=(
-                f"no vertex with K={geometry.K:.4g}, |H|={abs(geometry.H):.4g} "
-                "within the lookup tolerance"
-            ),
-            trace=RegistrationTrace(candidates=cands) if trace else None,
+            reason=f"no vertex with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance",
+            **common,
         )
-    brackets = phi_brackets(model, cands)
-    clock.lap("phi")
-    screening = screen_candidates(model, cands, brackets)
-    clock.lap("screen")
-    chosen = screening.candidates[:searches]
-    phis = refine_phis(model, cands, brackets, chosen)
-    clock.lap("phi")
-    runs = search_candidates(
-        model, cands, [(i, p.phi) for i, p in zip(chosen, phis, strict=True)], method=method
-    )
-    clock.lap("search")
-    refined = refine_searches(model, cands, runs)
-    hypotheses = pose_hypotheses(model, cands, runs, refined)
-    poses = distinct_poses(hypotheses, float(geometry.half_length))
-    clock.lap("refine")
+    poses = distinct_poses(stages.hypotheses, float(cands.geometry.half_length))
     best = poses[0]
     return Registration(
-        model=model.name,
-        path=str(model.path),
         error=best.error,
         contact=best.contact,
         normal=best.normal,
@@ -331,27 +339,13 @@ def register(
         T_model_touch=best.T_model_touch,
         candidates=len(cands),
         raw_hits=cands.raw_hits,
-        searches=len(runs.runs),
-        seconds=time.perf_counter() - t_start,
-        times=StageTimes(**clock.seconds),
+        searches=len(stages.searches.runs),
         candidate_points=cands.model_points,
-        search_paths=tuple(r.result.path for r in runs.runs),
+        search_paths=tuple(r.result.path for r in stages.searches.runs),
         rms=best.rms,
         n_points=len(cands.points),
         poses=poses,
-        trace=(
-            RegistrationTrace(
-                candidates=cands,
-                brackets=brackets,
-                screening=screening,
-                phis=phis,
-                searches=runs,
-                refinements=refined,
-                hypotheses=hypotheses,
-            )
-            if trace
-            else None
-        ),
+        **common,
     )
 
 
