@@ -28,21 +28,41 @@ from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.library import ModelLibrary, bundled_models_dir
 from meshrec.model.mesh import load_mesh
 from meshrec.recognition.recognize import Recognition, recognize
+from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
 from meshrec.registration.candidates import curvature_tolerance
+from meshrec.registration.lookup import ContactCandidates, lookup_candidates
+from meshrec.registration.poses import (
+    PoseHypothesis,
+    RefinedSearch,
+    distinct_poses,
+    pose_hypotheses,
+    refine_searches,
+)
 from meshrec.registration.register import Registration, StageTimes, refine_pose, register
+from meshrec.registration.screening import Screening, screen_candidates
+from meshrec.registration.searching import Searches, SearchRun, search_candidates
+from meshrec.registration.trace import RegistrationTrace
 from meshrec.sim.paper import PAPER_SURFACES, localisation_error, symmetry_rotations
 from meshrec.sim.simulate import SimulatedTouch, simulate_touch
 
 __all__ = [
     "PAPER_SURFACES",
     "CommonPoint",
+    "ContactCandidates",
     "IndexParams",
     "LocalGeometry",
     "ModelIndex",
     "ModelLibrary",
+    "PhiBrackets",
+    "PoseHypothesis",
     "Recognition",
+    "RefinedSearch",
     "Registration",
+    "RegistrationTrace",
     "RoughFitWarning",
+    "Screening",
+    "SearchRun",
+    "Searches",
     "SimulatedTouch",
     "StageTimes",
     "TouchData",
@@ -50,14 +70,22 @@ __all__ = [
     "__version__",
     "bundled_models_dir",
     "curvature_tolerance",
+    "distinct_poses",
     "estimate_local_geometry",
     "find_common_point",
     "load_mesh",
     "localisation_error",
+    "lookup_candidates",
+    "phi_brackets",
+    "pose_hypotheses",
     "read_truth",
     "recognize",
+    "refine_phis",
     "refine_pose",
+    "refine_searches",
     "register",
+    "screen_candidates",
+    "search_candidates",
     "simulate_touch",
     "symmetry_rotations",
     "write_truth",

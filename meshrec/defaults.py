@@ -91,10 +91,9 @@ SEARCH_PATIENCE = 3
 SEARCH_IMPROVEMENT = 0.01
 #: ... but only once the best mean distance is within this factor of the noise RMS that
 #: the curve fits estimate (a right superposition leaves 0.80 to 0.87 of it: Gaussian to
-#: uniform noise; a near miss on the crossed trough, seed 4, left 1.07), or is more than
-#: RIVAL_RATIO times a rival model's error (it cannot win the recognition).
+#: uniform noise; a near miss on the crossed trough, seed 4, left 1.07). The rule looks at
+#: one model's searches only, so that no model's result depends on another's.
 SEARCH_GOOD_FIT = 1.0
-RIVAL_RATIO = 2.0
 #: The local-search results (best by their subsample error) given the final rigid
 #: refinement on all the points. All of them: at the noise floor the 64-point subsample
 #: misranks basins whose errors differ by a few percent (100 seeded touches per paper
@@ -124,12 +123,39 @@ CHART_MAX_EVALS = 30
 CHART_TOL = 1e-5
 #: Iterations of the paper's steepest descent (reference method) at most.
 STEEPEST_MAX_ITER = 300
+#: The steepest descent works in (u / half-length, v / half-length, phi): its first step
+#: is this long in those units (5% of the half-length, or 0.05 rad) ...
+STEEPEST_STEP = 0.05
+#: ... its gradient is a central difference with this step (in the same units) ...
+STEEPEST_FD_STEP = 1e-5
+#: ... its backtracking line search halves the step (STEEPEST_SHRINK) until the Armijo
+#: condition E1 < E0 - STEEPEST_ARMIJO * step * |grad| holds (the usual 1e-4), giving up
+#: below STEEPEST_MIN_STEP; after an accepted step the next starts STEEPEST_GROW times
+#: longer. It stops when E improves by less than STEEPEST_REL_TOL (a fraction). These are
+#: the values the reference method was written with; the default method is "lm".
+STEEPEST_MIN_STEP = 1e-7
+STEEPEST_ARMIJO = 1e-4
+STEEPEST_SHRINK = 0.5
+STEEPEST_GROW = 1.5
+STEEPEST_REL_TOL = 1e-7
 #: Iterations of the final rigid (6-DOF) refinement at most.
 REFINE_MAX_ITER = 30
 #: The final refinement stops when the error improves by less than this fraction.
 REFINE_REL_TOL = 1e-6
-#: Local-search results closer than this fraction of the half-length are the same minimum.
-DUPLICATE_FRACTION = 0.05
+#: Levenberg-Marquardt damping of the rigid refinement (relative to diag(J^T J)): the
+#: first iteration's, the factor it grows by after a rejected step (and shrinks by after
+#: an accepted one), the largest tried before giving up (no step reduces the error), and
+#: the least it shrinks to. The start and factor are Numerical Recipes' (mrqmin: 1e-3,
+#: times or divided by 10); the bounds only stop the loop.
+REFINE_DAMPING = 1e-3
+REFINE_DAMPING_FACTOR = 10.0
+REFINE_MAX_DAMPING = 1e8
+REFINE_MIN_DAMPING = 1e-9
+#: Two refined poses whose contacts are closer than this fraction of the curves'
+#: half-length ... (Registration.poses keeps one of them, the better)
+POSE_DUPLICATE_FRACTION = 0.05
+#: ... and whose rotations differ by at most this angle, degrees, are the same minimum.
+POSE_DUPLICATE_ANGLE_DEG = 1.0
 #: The default local-search method: "lm" (least squares on charts) or "steepest" (the paper's).
 SEARCH_METHOD = "lm"
 

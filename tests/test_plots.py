@@ -13,6 +13,7 @@ from matplotlib import image as mpimg
 
 from meshrec.app.cli import main
 from meshrec.figures import plots, viz
+from meshrec.registration.register import register
 
 
 def _png(path: Path) -> np.ndarray:
@@ -31,8 +32,13 @@ def setup(touched_ellipsoid):
 
 
 @pytest.fixture(scope="module")
-def profile(setup):
-    return plots.phi_profile(setup.sim.touch, setup.library["ellipsoid"])
+def traced(setup):
+    return register(setup.sim.touch, setup.library["ellipsoid"], trace=True)
+
+
+@pytest.fixture(scope="module")
+def profile(setup, traced):
+    return plots.phi_profile(traced, setup.library["ellipsoid"])
 
 
 # ------------------------------------------------------------------ Figure 2: phi
@@ -49,11 +55,24 @@ def test_phi_profile_minimum_is_the_fine_samplings(profile):
     assert profile.refined.any()
 
 
-def test_phi_profile_default_candidate_has_the_least_sampled_error(setup, profile):
+def test_phi_profile_default_candidate_has_the_least_sampled_error(setup, traced, profile):
     model = setup.library["ellipsoid"]
-    others = [plots.phi_profile(setup.sim.touch, model, candidate=i, samples=36) for i in (0, 1)]
+    others = [plots.phi_profile(traced, model, candidate=i, samples=36) for i in (0, 1)]
     for other in others:
         assert profile.grid_errors.min() <= other.grid_errors.min() + 1e-12
+
+
+def test_phi_profile_of_an_unsearched_candidate_matches_its_fine_sampling(setup, traced):
+    # A candidate the registration did not search gets its brackets refined by the same
+    # stage: its minimum is within two fine steps of the best of 720 angles.
+    searched = set(traced.trace.screening.candidates[: len(traced.trace.phis)].tolist())
+    other = next(i for i in range(traced.candidates) if i not in searched)
+    prof = plots.phi_profile(traced, setup.library["ellipsoid"], candidate=other)
+    k = int(np.argmin(prof.errors))
+    assert prof.error <= prof.errors[k] + 1e-9
+    gap = abs((prof.phi - prof.phis[k] + np.pi) % (2.0 * np.pi) - np.pi)
+    assert gap <= 2.0 * (2.0 * np.pi / len(prof.phis))
+    assert np.array_equal(prof.point, traced.candidate_points[other])
 
 
 def test_phi_figure_writes_a_png_of_the_requested_size(profile, tmp_path):
@@ -74,16 +93,23 @@ def test_phi_figure_writes_a_png_of_the_requested_size(profile, tmp_path):
         ({"candidate": 1.5}, "candidate must be an index"),
     ],
 )
-def test_phi_profile_rejects_bad_arguments(setup, kwargs, match):
+def test_phi_profile_rejects_bad_arguments(setup, traced, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        plots.phi_profile(setup.sim.touch, setup.library["ellipsoid"], **kwargs)
+        plots.phi_profile(traced, setup.library["ellipsoid"], **kwargs)
 
 
-def test_phi_profile_rejects_a_model_without_candidates_and_a_non_touch(setup):
+def test_phi_profile_rejects_a_model_without_candidates_and_a_registration_without_trace(
+    setup, traced
+):
+    box = setup.library["box"]
     with pytest.raises(ValueError, match="model 'box' has no candidate for this touch"):
-        plots.phi_profile(setup.sim.touch, setup.library["box"])
-    with pytest.raises(ValueError, match="touch must be a TouchData, got list"):
+        plots.phi_profile(register(setup.sim.touch, box, trace=True), box)
+    with pytest.raises(ValueError, match="registration must be a Registration, got list"):
         plots.phi_profile([], setup.library["ellipsoid"])
+    with pytest.raises(ValueError, match="registration must carry a trace"):
+        plots.phi_profile(setup.rec.best, setup.library["ellipsoid"])
+    with pytest.raises(ValueError, match="model must be 'ellipsoid', the model registered"):
+        plots.phi_profile(traced, box)
 
 
 def test_phi_figure_rejects_bad_arguments(profile, tmp_path):

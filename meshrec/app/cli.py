@@ -363,12 +363,13 @@ def _run_viz(args) -> int:
             return 0
         size = {} if args.size is None else {"size": args.size}
         if args.plot == "phi":
+            from meshrec.registration.register import register
+
             model = _model_arg(args, library)
             if model is None:
                 model, _ = _viz_registration(args, touch, geometry, library)
-            profile = plots.phi_profile(
-                touch, model, candidate=args.candidate, geometry=geometry
-            )
+            reg = register(touch, model, geometry=geometry, trace=True)
+            profile = plots.phi_profile(reg, model, candidate=args.candidate)
             out = plots.phi_figure(profile, args.output, **size)
             detail = f"candidate {profile.candidate}, phi {profile.phi:.4f} rad"
         else:

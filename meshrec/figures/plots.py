@@ -2,8 +2,7 @@
 
 * :func:`phi_figure` (Figure 2): the registration error against the rotation phi about the
   normal with the contact held at one candidate point, the brackets of its local minima
-  and the chosen minimum (from :func:`phi_profile`, which repeats the registration's phi
-  search at that candidate).
+  and the chosen minimum (from :func:`phi_profile`, drawn from a registration's trace).
 * :func:`search_figure` (Figure 3): the candidate points on the model, the paths the
   local searches took from them to their minima, and the winner.
 * :func:`contacts_figure` (Figure 6): true contacts as dots and estimated ones as crosses,
@@ -28,10 +27,10 @@ from meshrec import defaults
 from meshrec.figures._pixels import check_size, write_png_atomic
 from meshrec.figures.viz import COLORS, VizDependencyError
 from meshrec.model.mesh import load_mesh
-from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
-from meshrec.registration.objective import mean_distances
-from meshrec.registration.phi import bracket_minima, search_phi
-from meshrec.registration.register import _phi_grid_errors, _sides, _subsample, touch_geometry
+from meshrec.registration.brackets import phi_error, refine_phis
+from meshrec.registration.chart import tangent_frame
+from meshrec.registration.phi import bracket_minima
+from meshrec.registration.register import Registration
 
 __all__ = [
     "PhiProfile",
@@ -288,29 +287,28 @@ class PhiProfile:
 
 
 def phi_profile(
-    touch, model, candidate: int | None = None, *, samples: int = 720, geometry=None
+    registration, model, candidate: int | None = None, *, samples: int = 720
 ) -> PhiProfile:
-    """Repeat the registration's phi search at one candidate point, for :func:`phi_figure`.
+    """The registration's phi search at one candidate point, for :func:`phi_figure`.
 
-    The candidates are found as :func:`meshrec.registration.register` finds them (same lookup, same
-    order), the data are placed with their common point on the candidate and their normal
-    along the model's, and the error is sampled, bracketed and refined by
-    :func:`meshrec.registration.phi.search_phi`.
+    Drawn from the registration's trace (``register(..., trace=True)``): the sampled
+    errors, brackets and refined minima are the ones the registration computed (for a
+    candidate it did not search, its brackets are refined here by the same stage,
+    :func:`meshrec.registration.brackets.refine_phis`); only the fine curve is sampled
+    anew, with the data's common point on the candidate and their normal along the
+    model's.
 
     Parameters
     ----------
-    touch : TouchData
-        The touch data.
+    registration : Registration
+        A registration with a trace (``register(touch, model, trace=True)``).
     model : ModelIndex
-        The model (from a :class:`~meshrec.ModelLibrary`).
+        The model registered (its distance tree evaluates the fine curve).
     candidate : int, optional
         Index of the candidate, as in ``Registration.candidate_points``. Default: the
         candidate whose best sampled error is the least.
     samples : int
         Angles of the fine curve drawn, at least 36.
-    geometry : LocalGeometry, optional
-        The local geometry at the contact, if already estimated (as for
-        :func:`meshrec.registration.register`).
 
     Returns
     -------
@@ -319,83 +317,67 @@ def phi_profile(
     Raises
     ------
     ValueError
-        If ``samples`` is not an integer >= 36, ``candidate`` is not an index of the
-        model's candidates, the model has no candidate for this touch, or the curves do
-        not allow a local-geometry estimate.
+        If ``registration`` is not a Registration or has no trace, ``model`` is not the
+        model registered, ``samples`` is not an integer >= 36, the model had no
+        candidate for the touch, or ``candidate`` is not an index of its candidates.
     """
-    from meshrec.io.touch import TouchData
-    from meshrec.registration.candidates import find_candidates
-
-    if not isinstance(touch, TouchData):
-        raise ValueError(f"touch must be a TouchData, got {type(touch).__name__}")
+    if not isinstance(registration, Registration):
+        raise ValueError(f"registration must be a Registration, got {type(registration).__name__}")
+    trace = registration.trace
+    if trace is None:
+        raise ValueError(
+            f"registration must carry a trace (register(..., trace=True)), got none for "
+            f"{registration.model!r}"
+        )
+    if getattr(model, "name", None) != registration.model:
+        raise ValueError(
+            f"model must be {registration.model!r}, the model registered, got "
+            f"{getattr(model, 'name', model)!r}"
+        )
     if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 36:
         raise ValueError(f"samples must be an integer >= 36, got {samples!r}")
-    if geometry is None:
-        geometry = touch_geometry(touch)
-    points = touch.points
-    scale = float(geometry.half_length)
-    starts = []  # (side geometry, flipped, vertex), in register's order
-    for k, side in enumerate(_sides(geometry, touch, model)):
-        cand = find_candidates(model, side.k1, side.k2, scale, side.fit_rms)
-        starts.extend((side, k == 1, int(v)) for v in cand.vertices)
-    if not starts:
+    cands, brackets = trace.candidates, trace.brackets
+    if len(cands) == 0:
+        g = cands.geometry
         raise ValueError(
-            f"model {model.name!r} has no candidate for this touch (K={geometry.K:.4g}, "
-            f"|H|={abs(geometry.H):.4g} outside its table's lookup window)"
+            f"model {registration.model!r} has no candidate for this touch (K={g.K:.4g}, "
+            f"|H|={abs(g.H):.4g} outside its table's lookup window)"
         )
-    sub = _subsample(len(points), defaults.PHI_POINTS)
-
-    def setup(i):
-        side, flipped, v = starts[i]
-        origin = SurfacePoint(
-            point=model.vertices[v],
-            frame=tangent_frame(model.vertex_normals[v], hint=model.dir1[v]),
-        )
-        return origin, ((points - side.point) @ side.frame)[sub], flipped, v
-
-    def error_at(origin, local_sub):
-        def error(phis):
-            R = origin.frame @ rotation_z(np.asarray(phis, dtype=np.float64))
-            placed = np.einsum("kij,nj->kni", R, local_sub) + origin.point
-            return mean_distances(model, placed)
-
-        return error
-
-    sampled = None  # the candidate's sampled errors, when already computed
     if candidate is None:
-        setups = [setup(i) for i in range(len(starts))]
-        grid_errors = _phi_grid_errors(model, [s[0] for s in setups], [s[1] for s in setups])
-        candidate = int(np.argmin(grid_errors.min(axis=1)))
-        sampled = grid_errors[candidate]
+        candidate = int(np.argmin(brackets.best))
     elif (
         not isinstance(candidate, (int, np.integer))
         or isinstance(candidate, bool)
-        or not 0 <= candidate < len(starts)
+        or not 0 <= candidate < len(cands)
     ):
         raise ValueError(
-            f"candidate must be an index 0..{len(starts) - 1} of the {len(starts)} "
-            f"candidates on {model.name!r}, got {candidate!r}"
+            f"candidate must be an index 0..{len(cands) - 1} of the {len(cands)} "
+            f"candidates on {registration.model!r}, got {candidate!r}"
         )
     candidate = int(candidate)
-    origin, local_sub, flipped, v = setup(candidate)
-    error = error_at(origin, local_sub)
-    ps = search_phi(error, grid_errors=sampled)
+    searched = [int(i) for i in trace.screening.candidates[: len(trace.phis)]]
+    if candidate in searched:
+        ps = trace.phis[searched.index(candidate)]
+    else:
+        ps = refine_phis(model, cands, brackets, [candidate])[0]
+    origin = cands.origins[candidate]
+    error = phi_error(model, origin, cands.local_points[cands.side[candidate]][brackets.subset])
     step = 2.0 * np.pi / len(ps.grid)
     idx = bracket_minima(ps.grid_errors)
     best_sample = float(ps.grid_errors.min())
-    brackets = np.column_stack([ps.grid[idx] - step, ps.grid[idx] + step])
+    brackets_ = np.column_stack([ps.grid[idx] - step, ps.grid[idx] + step])
     refined = ps.grid_errors[idx] <= defaults.PHI_REFINE_RATIO * best_sample + 1e-300
     phis = np.linspace(0.0, 2.0 * np.pi, int(samples), endpoint=False)
     return PhiProfile(
-        model=model.name,
+        model=registration.model,
         candidate=candidate,
-        point=np.array(model.vertices[v], dtype=np.float64),
-        flipped=bool(flipped),
+        point=np.array(origin.point, dtype=np.float64),
+        flipped=bool(cands.side[candidate] == 1),
         grid=ps.grid,
         grid_errors=ps.grid_errors,
         phis=phis,
         errors=np.asarray(error(phis), dtype=np.float64),
-        brackets=brackets,
+        brackets=brackets_,
         refined=np.asarray(refined, dtype=bool),
         minima=ps.minima,
         phi=ps.phi,

@@ -30,7 +30,9 @@ class Recognition:
     geometry : LocalGeometry
         The local geometry estimated at the contact (touch frame), shared by all models.
     ranking : tuple of Registration
-        Every model, least error first; models rejected by the table lookup last.
+        Every model, least error first (ties: by name); models rejected by the table
+        lookup last. Each model is registered independently of the others, so the
+        ranking does not depend on the order of the models.
     seconds : float
         Wall time of the whole recognition.
     """
@@ -152,16 +154,13 @@ def recognize(
     _check_units(touch, models)
     if geometry is None:
         geometry = touch_geometry(touch)
+    # Every model is registered on its own (the result of one never depends on another),
+    # so the order of the models, or running them apart, changes nothing.
     results = []
     for i, model in enumerate(models):
         if progress is not None:
             progress(i, len(models), model.name)
-        # The best error so far lets a model that cannot win stop its searches early.
-        done = [r.error for r in results if r.error is not None]
-        rival = min(done) if done else None
-        results.append(
-            register(touch, model, geometry=geometry, method=method, rival_error=rival)
-        )
+        results.append(register(touch, model, geometry=geometry, method=method))
     results.sort(key=lambda r: (r.rejected, r.error if r.error is not None else 0.0, r.model))
     return Recognition(
         touch=touch, geometry=geometry, ranking=tuple(results), seconds=time.perf_counter() - t0

@@ -125,6 +125,7 @@ def find_candidates(
     half_length: float,
     fit_rms: float,
     max_candidates: int = defaults.MAX_CANDIDATES,
+    lookup_scale: float = 1.0,
 ) -> CandidateSet:
     """Look up the vertices of ``model`` whose (K, H) match, then spread them.
 
@@ -140,13 +141,31 @@ def find_candidates(
         RMS residual of the curve fits (the data's noise); sets the tolerance.
     max_candidates : int
         Most candidates returned.
+    lookup_scale : float
+        Factor widening both tolerances of :func:`curvature_tolerance` (1: as
+        calibrated; larger looks harder, for more candidates).
 
     Returns
     -------
     CandidateSet
+
+    Raises
+    ------
+    ValueError
+        If ``lookup_scale`` is not a positive finite number, or (see
+        :func:`curvature_tolerance`) ``half_length`` is not positive or ``fit_rms`` is
+        negative.
     """
+    if isinstance(lookup_scale, bool) or not (
+        isinstance(lookup_scale, (int, float, np.integer, np.floating))
+        and np.isfinite(lookup_scale)
+        and lookup_scale > 0
+    ):
+        raise ValueError(f"lookup_scale must be a positive finite number, got {lookup_scale!r}")
     K, H = k1 * k2, 0.5 * (k1 + k2)
     tol_K, tol_H = curvature_tolerance(k1, k2, half_length, fit_rms)
+    if lookup_scale != 1.0:
+        tol_K, tol_H = tol_K * lookup_scale, tol_H * lookup_scale
     hits = model.lookup(K, H, tol_K, tol_H)
     if len(hits) == 0:
         return CandidateSet(np.zeros(0, dtype=np.int64), 0, tol_K, tol_H)

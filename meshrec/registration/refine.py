@@ -6,6 +6,18 @@ search has converged, the full rigid transform is refined by Levenberg-Marquardt
 (Gauss-Newton with damping) on the same signed point-to-surface residuals, with their
 analytic Jacobian: for a point y with residual gradient g, a small rotation w about the
 points' centroid m and translation t change the residual by g . (w x (y - m) + t).
+
+Why hand-written rather than scipy's ``least_squares(method="lm")`` (measured on the 1081
+refinements of registrations of 32 seeded touches, 4 per bundled paper surface and
+object, best of 5 runs on a shared 2-core machine): scipy with the same residuals and
+Jacobian is *not* slower: 3.58 ms against 4.18 ms per final refinement (13.6 residual
+evaluations against 18.0: this loop ends by raising the damping until it gives up), with
+the same median RMS (relative difference 3e-9). (The screenings, capped at 3 iterations,
+do not compare: scipy's cap counts evaluations.) It is kept because swapping it changes the
+results: over 64 seeded recognitions (seeds 0-7 per bundled shape) the winner stayed the
+same, but the reported contact moved on 39 of them (mostly to a symmetric twin of equal
+error on the cylinders, the sphere and the ellipsoid) and the error changed by -5.1% to
++0.9%. Replacing it is a behaviour change to validate on the full benchmark first.
 """
 
 from __future__ import annotations
@@ -20,6 +32,10 @@ from meshrec.registration.objective import residuals
 from meshrec.registration.transform import apply_transform
 
 __all__ = ["Refinement", "refine_rigid"]
+
+#: Added to diag(A) before damping: a numerical guard against a singular system, not a
+#: tuning value (far below any squared residual gradient, which are of order 1).
+_DIAG_FLOOR = 1e-12
 
 
 @dataclass(frozen=True)
@@ -71,7 +87,7 @@ def refine_rigid(
     T = np.array(T_model_touch, dtype=np.float64)
     res = residuals(model, apply_transform(T, points))
     cost = float(res.values @ res.values)
-    lam = 1e-3
+    lam = defaults.REFINE_DAMPING
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (it is reported)
         y = apply_transform(T, points)
@@ -83,8 +99,10 @@ def refine_rigid(
         A = J.T @ J
         b = -J.T @ res.values
         accepted = False
-        while lam < 1e8:
-            step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), b)
+        while lam < defaults.REFINE_MAX_DAMPING:
+            # Marquardt's scaling of the damping by diag(A); the floor keeps the system
+            # regular for a column that vanishes (e.g. all gradients parallel).
+            step = np.linalg.solve(A + lam * np.diag(np.diag(A) + _DIAG_FLOOR), b)
             w, t = step[:3] * spread, step[3:]
             D = np.eye(4)
             D[:3, :3] = Rotation.from_rotvec(w).as_matrix()
@@ -95,12 +113,12 @@ def refine_rigid(
             if cost_new < cost:
                 accepted = True
                 break
-            lam *= 10.0
+            lam *= defaults.REFINE_DAMPING_FACTOR
         if not accepted:
             break
         improvement = (cost - cost_new) / max(cost, 1e-300)
         T, res, cost = T_new, res_new, cost_new
-        lam = max(lam / 10.0, 1e-9)
+        lam = max(lam / defaults.REFINE_DAMPING_FACTOR, defaults.REFINE_MIN_DAMPING)
         if improvement < rel_tol:
             break
     absval = np.abs(res.values)

@@ -1,8 +1,11 @@
 """Registration of touch data onto one model: the paper's Section 2.3 on a mesh.
 
-Steps: the local geometry at the contact (from the curves), the (K, H) table lookup for
-candidate points, the initial phi at each candidate, the local search over the contact's
-position and phi on surface charts, and a final rigid refinement of the best searches.
+:func:`register` composes the stages, each a public function of its own module: the
+(K, H) lookup for candidate contacts (:mod:`~meshrec.registration.lookup`), the error
+against phi and its brackets (:mod:`~meshrec.registration.brackets`), the screening
+(:mod:`~meshrec.registration.screening`), the local searches on surface charts
+(:mod:`~meshrec.registration.searching`) and the rigid refinement into pose hypotheses
+(:mod:`~meshrec.registration.poses`). With ``trace=True`` it keeps every stage's output.
 """
 
 from __future__ import annotations
@@ -17,13 +20,20 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
 from meshrec.io.checks import check_choice, check_instance, check_int, check_number
 from meshrec.io.touch import TouchData
-from meshrec.registration.candidates import find_candidates
-from meshrec.registration.chart import SurfacePoint, rotation_z, tangent_frame
-from meshrec.registration.objective import mean_distances
-from meshrec.registration.phi import search_phi
+from meshrec.registration.brackets import phi_brackets, refine_phis
+from meshrec.registration.lookup import lookup_candidates
+from meshrec.registration.poses import (
+    PoseHypothesis,
+    distinct_poses,
+    pose_hypotheses,
+    refine_searches,
+)
 from meshrec.registration.refine import refine_rigid
-from meshrec.registration.search import SEARCH_METHODS, local_search
-from meshrec.registration.transform import apply_transform, superposition
+from meshrec.registration.screening import screen_candidates
+from meshrec.registration.search import SEARCH_METHODS
+from meshrec.registration.searching import search_candidates
+from meshrec.registration.trace import RegistrationTrace
+from meshrec.registration.transform import apply_transform
 
 __all__ = ["Registration", "StageTimes", "refine_pose", "register", "touch_geometry"]
 
@@ -66,7 +76,11 @@ class Registration:
     normal : (3,) float or None
         The model's outward (face-winding) unit normal at ``contact``.
     phi : float or None
-        Rotation about the normal from the chart frame found by the local search, radians.
+        Rotation of ``T_model_touch`` about ``normal``, radians in [0, 2 pi): the angle
+        from the first axis of the chart frame at ``contact`` (the local search's frame
+        carried there) to the data frame's first axis placed by ``T_model_touch``
+        (see :class:`~meshrec.registration.poses.PoseHypothesis`); None when no chart
+        was used.
     T_model_touch : (4, 4) float or None
         Maps touch-frame points to model coordinates.
     candidates : int
@@ -85,6 +99,15 @@ class Registration:
         The candidate points, model coordinates.
     search_paths : tuple of (k, 3) float
         The contact's path in each local search, model coordinates.
+    rms : float or None
+        Root-mean-square point-to-surface distance at ``T_model_touch`` (the objective
+        the refinement minimises, by which the pose was chosen), model units.
+    n_points : int
+        Data points in ``error`` and ``rms`` (0 when rejected).
+    poses : tuple of PoseHypothesis
+        The distinct refined poses, least ``rms`` first; the first is the one reported.
+    trace : RegistrationTrace or None
+        Every stage's output, with ``register(..., trace=True)``; None otherwise.
     """
 
     model: str
@@ -102,6 +125,10 @@ class Registration:
     reason: str = ""
     candidate_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     search_paths: tuple[np.ndarray, ...] = field(default=(), repr=False)
+    rms: float | None = None
+    n_points: int = 0
+    poses: tuple[PoseHypothesis, ...] = field(default=(), repr=False)
+    trace: RegistrationTrace | None = field(default=None, repr=False)
 
     @property
     def rejected(self) -> bool:
@@ -113,7 +140,8 @@ class Registration:
             return f"Registration({self.model!r}, rejected: {self.reason})"
         c = np.round(self.contact, 6).tolist()
         return (
-            f"Registration({self.model!r}, error={self.error:.6g}, contact={c}, "
+            f"Registration({self.model!r}, error={self.error:.6g}, rms={self.rms:.6g}, "
+            f"contact={c}, "
             f"candidates={self.candidates}, searches={self.searches}, "
             f"seconds={self.seconds:.3f})"
         )
@@ -164,30 +192,24 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
     return g
 
 
-def _sides(geometry: LocalGeometry, touch: TouchData, model) -> list[LocalGeometry]:
-    """The sides of the surface to try: one when a normal is given and the mesh is closed."""
-    if touch.normal is not None and model.closed:
-        return [geometry]
-    return [geometry, geometry.flipped()]
+def _stage_inputs(method, max_candidates, searches, lookup_scale) -> None:
+    check_choice(method, SEARCH_METHODS, "method")
+    check_int(max_candidates, "max_candidates", minimum=1)
+    check_int(searches, "searches", minimum=1)
+    check_number(lookup_scale, "lookup_scale", positive=True)
 
 
-def _subsample(n: int, k: int) -> np.ndarray:
-    if n <= k:
-        return np.arange(n)
-    return np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
+class _Clock:
+    """Seconds per stage, accumulated."""
 
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+        self._t = time.perf_counter()
 
-def _phi_grid_errors(model, origins, locals_sub) -> np.ndarray:
-    """The error at every sampled phi for every candidate, (candidates, steps)."""
-    steps = defaults.PHI_STEPS
-    Rz = rotation_z(np.arange(steps) * (2.0 * np.pi / steps))  # (s, 3, 3)
-    frames = np.array([o.frame for o in origins])  # (c, 3, 3)
-    R = np.einsum("cij,sjk->csik", frames, Rz)  # (c, s, 3, 3)
-    pts = np.array(locals_sub)  # (c, n, 3)
-    placed = np.einsum("csij,cnj->csni", R, pts)
-    placed += np.array([o.point for o in origins])[:, None, None, :]
-    c, s, n, _ = placed.shape
-    return mean_distances(model, placed.reshape(c * s, n, 3)).reshape(c, s)
+    def lap(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self._t
+        self._t = now
 
 
 def register(
@@ -197,9 +219,25 @@ def register(
     method: str = defaults.SEARCH_METHOD,
     max_candidates: int = defaults.MAX_CANDIDATES,
     searches: int = defaults.LOCAL_SEARCHES,
-    rival_error: float | None = None,
+    trace: bool = False,
+    lookup_scale: float = 1.0,
 ) -> Registration:
-    """Register touch data onto one model.
+    """Register touch data onto one model: the stages of the paper's Section 2, in turn.
+
+    1. :func:`~meshrec.registration.lookup.lookup_candidates`: candidate contacts from
+       the (K, H) lookup, on each side of the surface;
+    2. :func:`~meshrec.registration.brackets.phi_brackets`: the error against phi at every
+       candidate, its brackets, the candidates ranked;
+    3. :func:`~meshrec.registration.screening.screen_candidates`: a few rigid steps rank
+       the best of them better;
+    4. :func:`~meshrec.registration.brackets.refine_phis`: the brackets of the best
+       ``searches`` screened candidates refined;
+    5. :func:`~meshrec.registration.searching.search_candidates`: local searches on
+       surface charts from them;
+    6. :func:`~meshrec.registration.poses.refine_searches`: rigid refinement of the best
+       searches on all points, and the distinct pose hypotheses, least RMS first.
+
+    The result depends on this model and the touch only (not on any other model).
 
     Parameters
     ----------
@@ -217,55 +255,72 @@ def register(
     searches : int
         Local searches run at most, on the candidates with the least error after the
         screening.
-    rival_error : float, optional
-        The least error of another model (``recognize`` passes the best so far): the
-        searches stop early once this model's best is far worse
-        (``defaults.RIVAL_RATIO``), since it cannot win.
+    trace : bool
+        Keep every stage's output in ``Registration.trace``.
+    lookup_scale : float
+        Factor widening the (K, H) lookup window (1: as calibrated).
 
     Returns
     -------
     Registration
+        With ``trace`` a :class:`~meshrec.registration.trace.RegistrationTrace` when
+        ``trace`` is true, None otherwise.
 
     Raises
     ------
     TypeError
         If ``touch`` is not a TouchData, ``geometry`` not a LocalGeometry, ``method`` not a
-        string, ``max_candidates`` or ``searches`` not an integer, or ``rival_error`` not
+        string, ``max_candidates`` or ``searches`` not an integer, or ``lookup_scale`` not
         a real number (the shared checks of :mod:`meshrec.io.checks`).
     ValueError
         If ``method`` is unknown, ``max_candidates`` or ``searches`` is less than 1,
-        ``rival_error`` is negative or not finite, or the local geometry cannot be
+        ``lookup_scale`` is not a positive finite number, or the local geometry cannot be
         estimated from the curves.
     """
     check_instance(touch, TouchData, "touch")
     check_instance(geometry, LocalGeometry, "geometry", optional=True)
-    check_choice(method, SEARCH_METHODS, "method")
-    check_int(max_candidates, "max_candidates", minimum=1)
-    check_int(searches, "searches", minimum=1)
-    if rival_error is not None:
-        check_number(rival_error, "rival_error", minimum=0.0)
+    _stage_inputs(method, max_candidates, searches, lookup_scale)
     t_start = time.perf_counter()
     if geometry is None:
         geometry = touch_geometry(touch)
-    points = touch.points
-    scale = float(geometry.half_length)
+    clock = _Clock()
+    cands = lookup_candidates(
+        touch, model, geometry, max_candidates=max_candidates, lookup_scale=lookup_scale
+    )
+    clock.lap("lookup")
+    if len(cands) == 0:
+        stages = RegistrationTrace(candidates=cands)
+        return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
+    brackets = phi_brackets(model, cands)
+    clock.lap("phi")
+    screening = screen_candidates(model, cands, brackets)
+    clock.lap("screen")
+    chosen = screening.candidates[:searches]
+    phis = refine_phis(model, cands, brackets, chosen)
+    clock.lap("phi")
+    starts = [(i, p.phi) for i, p in zip(chosen, phis, strict=True)]
+    runs = search_candidates(model, cands, starts, method=method)
+    clock.lap("search")
+    refined = refine_searches(model, cands, runs)
+    hypotheses = pose_hypotheses(model, cands, runs, refined)
+    clock.lap("refine")
+    stages = RegistrationTrace(cands, brackets, screening, phis, runs, refined, hypotheses)
+    return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
 
-    # Table lookup on each side of the surface.
-    t0 = time.perf_counter()
-    starts = []  # (side geometry, local points, vertex)
-    raw_hits = 0
-    for side in _sides(geometry, touch, model):
-        cand = find_candidates(
-            model, side.k1, side.k2, scale, side.fit_rms, max_candidates=max_candidates
-        )
-        raw_hits += cand.raw_hits
-        local = (points - side.point) @ side.frame
-        starts.extend((side, local, int(v)) for v in cand.vertices)
-    t_lookup = time.perf_counter() - t0
-    if not starts:
+
+def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float, clock):
+    """The Registration the stages' outputs make (the best distinct pose reported)."""
+    cands = stages.candidates
+    common = dict(
+        model=model.name,
+        path=str(model.path),
+        seconds=seconds,
+        times=StageTimes(**clock.seconds),
+        trace=stages if trace else None,
+    )
+    if len(cands) == 0:
+        g = cands.geometry
         return Registration(
-            model=model.name,
-            path=str(model.path),
             error=None,
             contact=None,
             normal=None,
@@ -274,120 +329,26 @@ def register(
             candidates=0,
             raw_hits=0,
             searches=0,
-            seconds=time.perf_counter() - t_start,
-            times=StageTimes(lookup=t_lookup),
-            reason=(
-                f"no vertex with K={geometry.K:.4g}, |H|={abs(geometry.H):.4g} "
-                "within the lookup tolerance"
-            ),
+            reason=f"no vertex with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance",
+            **common,
         )
-
-    # Initial phi at every candidate: the discretised error of all candidates in one
-    # batched distance query (on a subsample of the points), then every bracket refined
-    # for the candidates that go on to a local search.
-    t0 = time.perf_counter()
-    sub = _subsample(len(points), defaults.PHI_POINTS)
-    origins = [
-        SurfacePoint(
-            point=model.vertices[v],
-            frame=tangent_frame(model.vertex_normals[v], hint=model.dir1[v]),
-        )
-        for _, _, v in starts
-    ]
-    grid_errors = _phi_grid_errors(model, origins, [local[sub] for _, local, _ in starts])
-    best_grid = grid_errors.min(axis=1)
-    order = np.argsort(best_grid, kind="stable")
-    order = order[best_grid[order] <= defaults.SEARCH_PRUNE_RATIO * best_grid[order[0]]]
-    t_phi = time.perf_counter() - t0
-
-    # Screening: a few rigid-refinement steps on the subsample from each candidate's best
-    # sampled phi rank the candidates better than the sampled error alone (a candidate is
-    # up to the spreading spacing away from its basin's minimum).
-    t0 = time.perf_counter()
-    step = 2.0 * np.pi / defaults.PHI_STEPS
-    screened = []
-    for i in order[: defaults.SCREEN_CANDIDATES]:
-        side, _, _ = starts[i]
-        phi_i = float(np.argmin(grid_errors[i])) * step
-        T0 = superposition(side.point, side.frame, origins[i], phi_i)
-        quick = refine_rigid(model, points[sub], T0, max_iter=defaults.SCREEN_ITERATIONS)
-        screened.append((quick.error, int(i)))
-    screened.sort()
-    t_screen = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    seeds = []
-    for _, i in screened[:searches]:
-        side, local, _ = starts[i]
-        origin, local_sub = origins[i], local[sub]
-
-        def error(phis, origin=origin, local_sub=local_sub):
-            R = origin.frame @ rotation_z(phis)  # (k, 3, 3)
-            placed = np.einsum("kij,nj->kni", R, local_sub) + origin.point
-            return mean_distances(model, placed)
-
-        ps = search_phi(error, grid_errors=grid_errors[i])
-        seeds.append((side, local, origin, ps.phi))
-    t_phi += time.perf_counter() - t0
-
-    # Local search from the best candidates on a subsample of the points, then a rigid
-    # refinement on all of them of the best results (defaults.REFINE_BEST). The searches
-    # stop early once several in a row have not improved on a best that already fits the
-    # data to the noise level (the distance residuals of a right superposition are the
-    # noise, whose RMS the curve fits estimate), or that is far worse than a rival
-    # model's error.
-    t_search = t_refine = 0.0
-    found_all = []
-    paths = []
-    search_sub = _subsample(len(points), defaults.SEARCH_POINTS)
-    fit_rms = float(geometry.fit_rms)
-    stale = 0
-    t0 = time.perf_counter()
-    for side, local, origin, phi in seeds:
-        found = local_search(model, local[search_sub], origin, phi, scale, method=method)
-        paths.append(found.path)
-        best_so_far = min((f.error for _, f in found_all), default=np.inf)
-        better = found.error < (1.0 - defaults.SEARCH_IMPROVEMENT) * best_so_far
-        stale = 0 if better else stale + 1
-        found_all.append((side, found))
-        best = min(best_so_far, found.error)
-        settled = best <= defaults.SEARCH_GOOD_FIT * fit_rms or (
-            rival_error is not None and best > defaults.RIVAL_RATIO * rival_error
-        )
-        if stale >= defaults.SEARCH_PATIENCE and settled:
-            break
-    t_search = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    results = []
-    for side, found in sorted(found_all, key=lambda sf: sf[1].error)[: defaults.REFINE_BEST]:
-        T = superposition(side.point, side.frame, found.surface, found.phi)
-        ref = refine_rigid(model, points, T)
-        results.append((ref.rms, ref.error, ref.T_model_touch, found.phi))
-    t_refine = time.perf_counter() - t0
-    # The best result by the optimisers' own objective (the RMS distance); the error
-    # reported is the paper's mean distance at that result.
-    _, error, T, phi = min(results, key=lambda r: r[0])
-    contact_guess = apply_transform(T, geometry.point[None, :])
-    _, closest, face = model.closest_points(contact_guess)
-    normal = model.interpolated_normals(closest, face)[0]
-    cand_points = np.array([model.vertices[v] for _, _, v in starts])
+    poses = distinct_poses(stages.hypotheses, float(cands.geometry.half_length))
+    best = poses[0]
     return Registration(
-        model=model.name,
-        path=str(model.path),
-        error=float(error),
-        contact=closest[0],
-        normal=normal,
-        phi=float(phi),
-        T_model_touch=T,
-        candidates=len(starts),
-        raw_hits=raw_hits,
-        searches=len(results),
-        seconds=time.perf_counter() - t_start,
-        times=StageTimes(
-            lookup=t_lookup, phi=t_phi, screen=t_screen, search=t_search, refine=t_refine
-        ),
-        candidate_points=cand_points,
-        search_paths=tuple(paths),
+        error=best.error,
+        contact=best.contact,
+        normal=best.normal,
+        phi=best.phi,
+        T_model_touch=best.T_model_touch,
+        candidates=len(cands),
+        raw_hits=cands.raw_hits,
+        searches=len(stages.searches.runs),
+        candidate_points=cands.model_points,
+        search_paths=tuple(r.result.path for r in stages.searches.runs),
+        rms=best.rms,
+        n_points=len(cands.points),
+        poses=poses,
+        **common,
     )
 
 
@@ -419,7 +380,8 @@ def refine_pose(
     Returns
     -------
     Registration
-        With ``candidates`` and ``searches`` zero; ``phi`` is None (no chart was used).
+        With ``candidates`` and ``searches`` zero; ``phi`` is None (no chart was used);
+        ``poses`` holds the one refined pose.
 
     Raises
     ------
@@ -445,12 +407,21 @@ def refine_pose(
     t_refine = time.perf_counter() - t0
     contact_guess = apply_transform(ref.T_model_touch, geometry.point[None, :])
     _, closest, face = model.closest_points(contact_guess)
+    pose = PoseHypothesis(
+        T_model_touch=ref.T_model_touch,
+        error=float(ref.error),
+        rms=float(ref.rms),
+        contact=closest[0],
+        normal=model.interpolated_normals(closest, face)[0],
+        phi=None,
+        run=None,
+    )
     return Registration(
         model=model.name,
         path=str(model.path),
-        error=float(ref.error),
-        contact=closest[0],
-        normal=model.interpolated_normals(closest, face)[0],
+        error=pose.error,
+        contact=pose.contact,
+        normal=pose.normal,
         phi=None,
         T_model_touch=ref.T_model_touch,
         candidates=0,
@@ -458,4 +429,7 @@ def refine_pose(
         searches=0,
         seconds=time.perf_counter() - t_start,
         times=StageTimes(refine=t_refine),
+        rms=pose.rms,
+        n_points=len(touch.points),
+        poses=(pose,),
     )

@@ -183,7 +183,7 @@ def _search_steepest(model, local_points, start, phi0, scale) -> LocalSearch:
     e0 = energy(chart, np.array([0.0, 0.0, phi]))
     evaluations = 1
     path = [origin.point]
-    alpha, h = 0.05, 1e-5
+    alpha, h = defaults.STEEPEST_STEP, defaults.STEEPEST_FD_STEP
     for _ in range(defaults.STEEPEST_MAX_ITER):
         x0 = np.array([0.0, 0.0, phi])
         grad = np.empty(3)
@@ -197,14 +197,14 @@ def _search_steepest(model, local_points, start, phi0, scale) -> LocalSearch:
             break
         direction = -grad / gnorm
         improved = False
-        while alpha > 1e-7:
+        while alpha > defaults.STEEPEST_MIN_STEP:
             x1 = x0 + alpha * direction
             e1 = energy(chart, x1)
             evaluations += 1
-            if e1 < e0 - 1e-4 * alpha * gnorm:
+            if e1 < e0 - defaults.STEEPEST_ARMIJO * alpha * gnorm:
                 improved = True
                 break
-            alpha *= 0.5
+            alpha *= defaults.STEEPEST_SHRINK
         if not improved:
             break
         origin = chart.at(x1[0] * scale, x1[1] * scale)
@@ -213,8 +213,8 @@ def _search_steepest(model, local_points, start, phi0, scale) -> LocalSearch:
         path.append(origin.point)
         rel = (e0 - e1) / max(e0, 1e-300)
         e0 = e1
-        alpha *= 1.5
-        if rel < 1e-7:
+        alpha *= defaults.STEEPEST_GROW
+        if rel < defaults.STEEPEST_REL_TOL:
             break
     return LocalSearch(
         surface=origin,

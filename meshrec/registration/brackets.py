@@ -1,0 +1,212 @@
+"""Stage 2 of a registration: the error against phi at every candidate, and its brackets.
+
+With the data's common point on a candidate and their normal along the model's, the
+error depends on the rotation phi about the normal alone (the paper's Section 2.2.1).
+It is sampled at ``defaults.PHI_STEPS`` angles for every candidate in one batched distance
+query, on an even subsample of the data points; every local minimum of the samples is a
+bracket. The candidates are ranked by their best sample, and those far worse than the
+best are pruned. :func:`refine_phis` refines the brackets of the candidates that go on to
+a local search (stage 4, after the screening).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from meshrec import defaults
+from meshrec.registration.chart import SurfacePoint, rotation_z
+from meshrec.registration.lookup import ContactCandidates
+from meshrec.registration.objective import mean_distances
+from meshrec.registration.phi import PhiSearch, bracket_minima, search_phi
+from meshrec.registration.sampling import even_subsample
+
+__all__ = ["PhiBrackets", "grid_errors", "phi_brackets", "phi_error", "refine_phis"]
+
+
+@dataclass(frozen=True)
+class PhiBrackets:
+    """The sampled error against phi of every candidate, and their ranking.
+
+    Attributes
+    ----------
+    subset : (m,) int
+        The data points used (an even subsample, ``defaults.PHI_POINTS``).
+    grid : (s,) float
+        The sampled angles, ``2 pi i / s``, radians.
+    errors : (c, s) float
+        Mean point-to-surface distance of the subsample at each candidate and angle.
+    order : (k,) int
+        The candidates kept, best sampled error first (stable); those whose best sample
+        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned.
+    """
+
+    subset: np.ndarray = field(repr=False)
+    grid: np.ndarray = field(repr=False)
+    errors: np.ndarray = field(repr=False)
+    order: np.ndarray = field(repr=False)
+
+    @property
+    def best(self) -> np.ndarray:
+        """(c,) float: each candidate's least sampled error."""
+        return self.errors.min(axis=1)
+
+    @property
+    def minima(self) -> tuple[np.ndarray, ...]:
+        """Per candidate, the grid indices of its bracketed local minima (see
+        :func:`meshrec.registration.phi.bracket_minima`)."""
+        return tuple(bracket_minima(row) for row in self.errors)
+
+    def __repr__(self) -> str:
+        c, s = self.errors.shape
+        return f"PhiBrackets(candidates={c}, steps={s}, kept={len(self.order)})"
+
+
+def grid_errors(
+    model, origins: Sequence[SurfacePoint], local_points: Sequence[np.ndarray], steps: int
+) -> np.ndarray:
+    """The error at ``steps`` equally spaced phi for every candidate, in one query.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    origins : sequence of SurfacePoint
+        The candidates' points and frames on the model (``c`` of them).
+    local_points : sequence of (n, 3) float
+        Each candidate's data points in its side's frame.
+    steps : int
+        Angles sampled over [0, 2 pi).
+
+    Returns
+    -------
+    (c, steps) float
+        Mean unsigned point-to-surface distance at each candidate and angle.
+    """
+    Rz = rotation_z(np.arange(steps) * (2.0 * np.pi / steps))  # (s, 3, 3)
+    frames = np.array([o.frame for o in origins])  # (c, 3, 3)
+    R = np.einsum("cij,sjk->csik", frames, Rz)  # (c, s, 3, 3)
+    pts = np.array(local_points)  # (c, n, 3)
+    placed = np.einsum("csij,cnj->csni", R, pts)
+    placed += np.array([o.point for o in origins])[:, None, None, :]
+    c, s, n, _ = placed.shape
+    return mean_distances(model, placed.reshape(c * s, n, 3)).reshape(c, s)
+
+
+def phi_error(model, origin: SurfacePoint, local_points: np.ndarray):
+    """The error as a function of phi with the data's contact held at ``origin``.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    origin : SurfacePoint
+        The candidate's point and frame on the model.
+    local_points : (n, 3) float
+        The data points in the side's frame.
+
+    Returns
+    -------
+    callable
+        ``error(phis)``: (k,) angles to their (k,) mean point-to-surface distances.
+    """
+
+    def error(phis):
+        R = origin.frame @ rotation_z(phis)  # (k, 3, 3)
+        placed = np.einsum("kij,nj->kni", R, local_points) + origin.point
+        return mean_distances(model, placed)
+
+    return error
+
+
+def phi_brackets(
+    model,
+    candidates: ContactCandidates,
+    *,
+    steps: int = defaults.PHI_STEPS,
+    n_points: int = defaults.PHI_POINTS,
+    prune_ratio: float = defaults.SEARCH_PRUNE_RATIO,
+) -> PhiBrackets:
+    """Sample the error against phi at every candidate, and rank the candidates.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    candidates : ContactCandidates
+        From :func:`meshrec.registration.lookup.lookup_candidates`, not empty.
+    steps : int
+        Angles sampled over [0, 2 pi).
+    n_points : int
+        Data points used (an even subsample).
+    prune_ratio : float
+        Candidates whose best sample exceeds this factor times the least one are dropped
+        from ``order``.
+
+    Returns
+    -------
+    PhiBrackets
+
+    Raises
+    ------
+    ValueError
+        If ``candidates`` is empty, ``steps`` is below 3 or ``n_points`` below 1.
+    """
+    if len(candidates) == 0:
+        raise ValueError("candidates must hold at least one candidate, got none")
+    if not isinstance(steps, (int, np.integer)) or steps < 3:
+        raise ValueError(f"steps must be an integer >= 3, got {steps!r}")
+    subset = even_subsample(len(candidates.points), n_points)
+    local_sub = [candidates.local_points[k][subset] for k in candidates.side]
+    errors = grid_errors(model, candidates.origins, local_sub, steps)
+    best = errors.min(axis=1)
+    order = np.argsort(best, kind="stable")
+    order = order[best[order] <= prune_ratio * best[order[0]]]
+    return PhiBrackets(
+        subset=subset,
+        grid=np.arange(steps) * (2.0 * np.pi / steps),
+        errors=errors,
+        order=order,
+    )
+
+
+def refine_phis(
+    model,
+    candidates: ContactCandidates,
+    brackets: PhiBrackets,
+    indices: Sequence[int],
+) -> tuple[PhiSearch, ...]:
+    """Refine every bracket of the given candidates (stage 4, before their local search).
+
+    Parameters
+    ----------
+    model : ModelIndex
+    candidates : ContactCandidates
+    brackets : PhiBrackets
+        From :func:`phi_brackets` on the same candidates.
+    indices : sequence of int
+        The candidates whose brackets to refine.
+
+    Returns
+    -------
+    tuple of PhiSearch
+        One per index, in order (see :func:`meshrec.registration.phi.search_phi`).
+
+    Raises
+    ------
+    ValueError
+        If ``brackets`` does not belong to ``candidates`` (another count) or an index is
+        out of range.
+    """
+    c = len(candidates)
+    if brackets.errors.shape[0] != c:
+        raise ValueError(
+            f"brackets must be of these {c} candidates, got {brackets.errors.shape[0]}"
+        )
+    out = []
+    for i in indices:
+        if not 0 <= int(i) < c:
+            raise ValueError(f"indices must be in 0..{c - 1}, got {i!r}")
+        local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
+        error = phi_error(model, candidates.origins[i], local_sub)
+        out.append(search_phi(error, steps=len(brackets.grid), grid_errors=brackets.errors[i]))
+    return tuple(out)

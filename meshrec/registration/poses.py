@@ -1,0 +1,223 @@
+"""Stage 6 of a registration: rigid refinement of the searches, and the pose hypotheses.
+
+The best local-search results (by their subsample error, ``defaults.REFINE_BEST``) are
+refined rigidly on all the data points (see :func:`meshrec.registration.refine.refine_rigid`).
+Each refined pose is a hypothesis; ranked by the optimiser's own objective (the RMS
+point-to-surface distance), the distinct ones are kept: a pose whose contact is within
+``defaults.POSE_DUPLICATE_FRACTION`` of the curves' half-length of a better one's and
+whose rotation is within ``defaults.POSE_DUPLICATE_ANGLE_DEG`` of it is the same minimum.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from meshrec import defaults
+from meshrec.registration.chart import tangent_frame
+from meshrec.registration.lookup import ContactCandidates
+from meshrec.registration.refine import Refinement, refine_rigid
+from meshrec.registration.searching import Searches
+from meshrec.registration.transform import apply_transform, superposition
+
+__all__ = [
+    "PoseHypothesis",
+    "RefinedSearch",
+    "distinct_poses",
+    "pose_hypotheses",
+    "refine_searches",
+]
+
+
+@dataclass(frozen=True)
+class RefinedSearch:
+    """The rigid refinement of one local search's result.
+
+    Attributes
+    ----------
+    run : int
+        Index of the search in ``Searches.runs``.
+    refinement : Refinement
+        The refined pose and its errors on all the data points.
+    """
+
+    run: int
+    refinement: Refinement = field(repr=False)
+
+
+@dataclass(frozen=True)
+class PoseHypothesis:
+    """One refined pose of the touch on the model.
+
+    Attributes
+    ----------
+    T_model_touch : (4, 4) float
+        Maps touch-frame points to model coordinates.
+    error : float
+        Mean unsigned point-to-surface distance of all the data points, model units.
+    rms : float
+        Root-mean-square point-to-surface distance (the refinement's objective).
+    contact : (3,) float
+        The contact on the model: the closest surface point to the data's common point
+        placed by ``T_model_touch``, model coordinates.
+    normal : (3,) float
+        The model's outward (face-winding) unit normal at ``contact``.
+    phi : float or None
+        Rotation of the pose about ``normal``, radians in [0, 2 pi): the angle from the
+        first axis of the contact's chart frame (the search's chart frame carried to
+        ``contact``) to the data frame's first axis placed by ``T_model_touch``, in the
+        tangent plane; None for a pose refined from a given one (no chart).
+    run : int or None
+        Index of the local search it came from, in ``Searches.runs`` (None: no search).
+    """
+
+    T_model_touch: np.ndarray = field(repr=False)
+    error: float
+    rms: float
+    contact: np.ndarray
+    normal: np.ndarray = field(repr=False)
+    phi: float | None
+    run: int | None
+
+
+def refine_searches(
+    model,
+    candidates: ContactCandidates,
+    searches: Searches,
+    *,
+    best: int = defaults.REFINE_BEST,
+) -> tuple[RefinedSearch, ...]:
+    """Refine the best ``best`` local-search results rigidly on all the data points.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    candidates : ContactCandidates
+    searches : Searches
+        From :func:`meshrec.registration.searching.search_candidates`.
+    best : int
+        Results refined, least subsample error first (ties: the earlier search).
+
+    Returns
+    -------
+    tuple of RefinedSearch
+        In the order refined (least search error first).
+
+    Raises
+    ------
+    ValueError
+        If ``best`` is not a positive integer.
+    """
+    if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
+        raise ValueError(f"best must be a positive integer, got {best!r}")
+    order = sorted(range(len(searches.runs)), key=lambda k: searches.runs[k].result.error)
+    out = []
+    for k in order[:best]:
+        run = searches.runs[k]
+        side = candidates.sides[candidates.side[run.candidate]]
+        T = superposition(side.point, side.frame, run.result.surface, run.result.phi)
+        out.append(RefinedSearch(run=k, refinement=refine_rigid(model, candidates.points, T)))
+    return tuple(out)
+
+
+def pose_hypotheses(
+    model,
+    candidates: ContactCandidates,
+    searches: Searches,
+    refined: Sequence[RefinedSearch],
+) -> tuple[PoseHypothesis, ...]:
+    """Every refined pose as a hypothesis, least RMS distance first (stable).
+
+    Parameters
+    ----------
+    model : ModelIndex
+    candidates : ContactCandidates
+    searches : Searches
+    refined : sequence of RefinedSearch
+        From :func:`refine_searches`.
+
+    Returns
+    -------
+    tuple of PoseHypothesis
+        One per refined search (duplicates included; see :func:`distinct_poses`).
+    """
+    out = []
+    for r in refined:
+        run = searches.runs[r.run]
+        side = candidates.sides[candidates.side[run.candidate]]
+        T = r.refinement.T_model_touch
+        guess = apply_transform(T, candidates.geometry.point[None, :])
+        _, closest, face = model.closest_points(guess)
+        normal = model.interpolated_normals(closest, face)[0]
+        frame = tangent_frame(normal, hint=run.result.surface.frame[:, 0])
+        placed_x = T[:3, :3] @ side.frame[:, 0]
+        phi = float(np.arctan2(placed_x @ frame[:, 1], placed_x @ frame[:, 0]) % (2.0 * np.pi))
+        out.append(
+            PoseHypothesis(
+                T_model_touch=T,
+                error=float(r.refinement.error),
+                rms=float(r.refinement.rms),
+                contact=closest[0],
+                normal=normal,
+                phi=phi,
+                run=r.run,
+            )
+        )
+    out.sort(key=lambda p: p.rms)
+    return tuple(out)
+
+
+def _same_pose(a: PoseHypothesis, b: PoseHypothesis, distance: float, angle: float) -> bool:
+    if np.linalg.norm(a.contact - b.contact) > distance:
+        return False
+    R = a.T_model_touch[:3, :3].T @ b.T_model_touch[:3, :3]
+    cos = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    return bool(np.arccos(cos) <= angle)
+
+
+def distinct_poses(
+    hypotheses: Sequence[PoseHypothesis],
+    half_length: float,
+    *,
+    distance_fraction: float = defaults.POSE_DUPLICATE_FRACTION,
+    angle_deg: float = defaults.POSE_DUPLICATE_ANGLE_DEG,
+) -> tuple[PoseHypothesis, ...]:
+    """Drop the hypotheses that repeat a better one (the same minimum found twice).
+
+    Parameters
+    ----------
+    hypotheses : sequence of PoseHypothesis
+        Best first.
+    half_length : float
+        The curves' half-length (sets the contact tolerance).
+    distance_fraction : float
+        Contacts closer than this fraction of ``half_length`` may be the same minimum ...
+    angle_deg : float
+        ... if their rotations also differ by at most this angle, degrees.
+
+    Returns
+    -------
+    tuple of PoseHypothesis
+        The first of each group of duplicates, in the given order.
+
+    Raises
+    ------
+    ValueError
+        If ``half_length`` is not positive, or a tolerance is negative.
+    """
+    if not (np.isfinite(half_length) and half_length > 0):
+        raise ValueError(f"half_length must be positive, got {half_length!r}")
+    if not (distance_fraction >= 0 and angle_deg >= 0):
+        raise ValueError(
+            f"distance_fraction and angle_deg must be >= 0, got {distance_fraction!r}, "
+            f"{angle_deg!r}"
+        )
+    distance = distance_fraction * half_length
+    angle = np.deg2rad(angle_deg)
+    kept: list[PoseHypothesis] = []
+    for h in hypotheses:
+        if not any(_same_pose(k, h, distance, angle) for k in kept):
+            kept.append(h)
+    return tuple(kept)
