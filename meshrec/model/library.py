@@ -15,6 +15,10 @@ from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
 ProgressCallback = Callable[[int, int, str], None]
 
+#: The name of a model folder's units note (``{"units": "mm"}``), which libraries ignore;
+#: read by :func:`meshrec.recognition.units.read_units_note`.
+UNITS_NOTE = "meshrec.json"
+
 
 class LibraryWarning(UserWarning):
     """A file of a model library was skipped."""
@@ -53,7 +57,8 @@ class ModelLibrary:
         Files are taken in sorted order. A file whose ending is not in
         :data:`meshrec.model.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
         file that cannot be loaded, or one whose name (stem) repeats an earlier one, is
-        skipped with a warning; hidden files (``.name``) and sub-folders are ignored.
+        skipped with a warning; hidden files (``.name``), the units note :data:`UNITS_NOTE`
+        and sub-folders are ignored.
         Nothing is ever written into ``folder`` (the cache lives in ``cache_dir``).
 
         Parameters
@@ -101,7 +106,11 @@ class ModelLibrary:
                 f"model folder {str(root)!r} cannot be listed ({exc.strerror})"
             ) from exc
         files = [p for p in entries if is_mesh_file(p)]
-        others = [p for p in entries if not is_mesh_file(p) and not p.name.startswith(".")]
+        others = [
+            p
+            for p in entries
+            if not is_mesh_file(p) and not p.name.startswith(".") and p.name != UNITS_NOTE
+        ]
         if not files:
             raise ValueError(
                 f"model folder {str(root)!r} holds no mesh file "
