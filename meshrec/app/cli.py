@@ -397,6 +397,37 @@ def main(argv: list[str] | None = None) -> int:
         return _interrupted()
 
 
+def _exit_on_sigint(signum, frame):  # pragma: no cover - runs in the killed process
+    import os
+
+    os.write(2, b"meshrec: interrupted\n")
+    os._exit(130)
+
+
+def _load_core() -> None:
+    """Import numpy, scipy, trimesh and libigl with Ctrl-C ending the process at once.
+
+    A KeyboardInterrupt cannot be relied on here: trimesh imports its optional
+    dependencies under ``except BaseException`` and swallows it (measured: SIGINT 0.3 s
+    into start-up was ignored and the run went on to the end). Nothing has been written
+    yet, so exiting at once with status 130 leaves nothing half-done.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        previous = None
+    else:
+        previous = signal.signal(signal.SIGINT, _exit_on_sigint)
+    try:
+        import meshrec.model.library
+        import meshrec.recognition.recognize
+        import meshrec.sim.simulate  # noqa: F401
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
 def _main(argv: list[str] | None) -> int:
     parser = _parser()
     argv = _join_vector_options(list(sys.argv[1:] if argv is None else argv))
@@ -404,6 +435,7 @@ def _main(argv: list[str] | None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    _load_core()
     previous = warnings.showwarning
     warnings.showwarning = _one_line_warning
     try:
