@@ -140,34 +140,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _progress_printer(stream):
-    tty = stream.isatty()
-
-    def progress(i: int, n: int, name: str) -> None:
-        if tty:  # one line, redrawn; the caller ends it (after the library is built)
-            width = 30
-            done = int(width * i / max(n, 1))
-            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:40]:<40}")
-        else:
-            stream.write(f"indexing {i + 1}/{n}: {name}\n")
-        stream.flush()
-
-    return progress
-
-
-def _resolve_model_file(text: str) -> Path:
-    from meshrec.model.library import bundled_models_dir
-
-    path = Path(text)
-    if path.exists():
-        return path
-    for lib in ("surfaces", "objects"):
-        folder = bundled_models_dir(lib)
-        for candidate in sorted(folder.glob(f"{text}.*")):
-            return candidate
-    raise ValueError(f"model_file {text}: no such file, nor a bundled model of that name")
-
-
 def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
     """The JSON document printed by ``meshrec recognize --json``.
 
@@ -288,48 +260,6 @@ def _run_batch(args, names, folder, units) -> int:
     return 0
 
 
-def _run_index(args) -> int:
-    from meshrec.app import inputs
-
-    folder = inputs.model_folder(args.models)
-    tty = sys.stderr.isatty()
-    try:
-        library = inputs.library(args, folder, progress=_progress_printer(sys.stderr))
-    finally:
-        if tty:
-            sys.stderr.write("\n")  # end the progress line, also when interrupted
-    for m in library.models:
-        how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
-        sys.stdout.write(
-            f"{m.name:<24} {len(m.faces):>8} faces  {int(m.valid.sum()):>8} table entries  "
-            f"{how}\n"
-        )
-    return 0
-
-
-def _run_simulate(args) -> int:
-    import numpy as np
-
-    from meshrec.sim.simulate import simulate_touch
-
-    model_file = _resolve_model_file(args.model_file)
-    sim = simulate_touch(
-        model_file,
-        contact=args.contact,
-        rng=args.seed,
-        n_points=args.points,
-        noise=args.noise,
-        length=args.length,
-    )
-    sim.write(args.output, args.truth)
-    c = np.array2string(sim.contact, precision=5)
-    sys.stdout.write(
-        f"wrote {args.output}: {len(sim.touch.curves)} curves x {args.points} points on "
-        f"{sim.model}, true contact {c}" + (f"; truth in {args.truth}" if args.truth else "") + "\n"
-    )
-    return 0
-
-
 def _run(args) -> int:
     if args.command in ("show", "plot"):
         from meshrec.app.commands_viz import run_viz
@@ -339,8 +269,15 @@ def _run(args) -> int:
         from meshrec.app.commands_models import run_models
 
         return run_models(args, sys.stdout)
-    run = {"recognize": _run_recognize, "index": _run_index, "simulate": _run_simulate}
-    return run[args.command](args)
+    if args.command == "index":
+        from meshrec.app.commands_simple import run_index
+
+        return run_index(args, sys.stdout, sys.stderr)
+    if args.command == "simulate":
+        from meshrec.app.commands_simple import run_simulate
+
+        return run_simulate(args, sys.stdout)
+    return _run_recognize(args)
 
 
 def _join_vector_options(argv: list[str]) -> list[str]:
