@@ -131,3 +131,36 @@ def test_batch_loads_the_library_once(touches, monkeypatch, capsys):
     assert cli.main(["recognize", "--batch", *files, "--top", "1"]) == 0
     assert len(capsys.readouterr().out.splitlines()) == 3
     assert len(calls) == 1
+
+
+def test_a_reader_that_stops_early_ends_the_batch_quietly(touches):
+    # `meshrec recognize --batch ... | head -1`: status 141 (SIGPIPE's), nothing on stderr
+    folder, env = touches
+    proc = subprocess.Popen(
+        [str(SCRIPT), "recognize", "--batch", "saddle.csv", "saddle.csv", "saddle.csv"],
+        env=env,
+        cwd=folder,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=600) == 141
+    assert json.loads(first)["best"] == "monkey_saddle"
+    assert err == ""
+
+
+def test_a_terminal_on_standard_input_is_refused(monkeypatch, capsys):
+    class Terminal:
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(sys, "stdin", Terminal())
+    assert cli.main(["recognize", "-"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "meshrec: error: touch file -: standard input is a terminal; pipe a CSV or JSON "
+        "touch into it\n"
+    )

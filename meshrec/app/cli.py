@@ -1,6 +1,7 @@
 """The ``meshrec`` command line: parses arguments and calls the public API, nothing more.
 
-Exit status: 0 success, 2 bad input (one line on stderr), 130 interrupted (Ctrl-C).
+Exit status: 0 success, 2 bad input (one line on stderr), 130 interrupted (Ctrl-C), 141
+standard output closed by its reader (a broken pipe).
 
 Only the standard library is imported at module level, and ``meshrec/__init__`` imports
 its public names lazily: everything heavy (numpy, scipy, trimesh, libigl) is loaded inside
@@ -326,7 +327,8 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         0 on success, 2 on bad input (one line on stderr, no traceback), 130 when
-        interrupted by Ctrl-C (SIGINT), at any moment: one line, no traceback.
+        interrupted by Ctrl-C (SIGINT), at any moment: one line, no traceback; 141,
+        silently, when standard output is a pipe closed by its reader.
     """
     try:
         return _main(argv)
@@ -380,6 +382,11 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as exc:
         sys.stderr.write(f"meshrec: error: {exc}\n")
         return 2
+    except BrokenPipeError:  # the reader of stdout went away (``| head -1``): stop quietly
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error
+        return 141  # what the shell shows for a process killed by SIGPIPE
     except OSError as exc:  # e.g. an output file that cannot be written
         target = exc.filename2 or exc.filename  # a rename's destination, else the file
         where = f" {target}:" if target else ""
