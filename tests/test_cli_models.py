@@ -127,7 +127,8 @@ def test_touch_in_metres_against_the_objects_in_millimetres(env, metres):
     # the objects' note says mm: without --units the size check refuses the touch
     _one_error_line(
         _run(["recognize", "touch_m.csv", "--models", "objects"], env, folder),
-        "likely a unit mismatch",
+        "likely a unit mismatch (mm vs m?); touch data and models must be in the same units "
+        "(give the touch's unit with --units, and the models' with --model-units",
     )
     # with --units m it is converted to millimetres and recognised
     proc = _run(

@@ -12,6 +12,7 @@ import trimesh
 
 from meshrec import ModelLibrary, TouchData, defaults, recognize
 from meshrec.recognition.units import (
+    UNIT_MISMATCH,
     UNITS,
     check_units,
     convert_touch,
@@ -122,7 +123,7 @@ def test_millimetres_against_metres_is_caught(boxes):
         r"diagonal 0\.27\d*\).*likely a unit mismatch \(mm vs m\?\)",
     ):
         check_units(touch_mm, boxes)
-    with pytest.raises(ValueError, match="likely a unit mismatch"):
+    with pytest.raises(ValueError, match=UNIT_MISMATCH):
         recognize(touch_mm, boxes)  # recognize checks first
     # and metres against millimetres: 0.00003 "m" on a box 0.27 across
     with pytest.raises(

@@ -380,7 +380,9 @@ def _main(argv: list[str] | None) -> int:
     try:
         return _run(args)
     except ValueError as exc:
-        sys.stderr.write(f"meshrec: error: {exc}\n")
+        from meshrec.app.inputs import error_message
+
+        sys.stderr.write(f"meshrec: error: {error_message(exc)}\n")
         return 2
     except BrokenPipeError:  # the reader of stdout went away (``| head -1``): stop quietly
         import os

@@ -6,7 +6,7 @@ import json
 import warnings
 from collections.abc import Callable
 
-from meshrec.app.inputs import STDIN, STDIN_NAME, read_touch, touch_in_units
+from meshrec.app.inputs import STDIN, STDIN_NAME, error_message, read_touch, touch_in_units
 from meshrec.recognition.recognize import Recognition, recognize
 from meshrec.registration.register import touch_geometry
 
@@ -27,7 +27,7 @@ def _one(name, library, units, models_units, method, to_json) -> dict:
             rec = recognize(touch, library, method=method, geometry=geometry)
             doc = {"file": shown, **to_json(rec)}
         except ValueError as exc:
-            doc = {"file": shown, "error": str(exc)}
+            doc = {"file": shown, "error": error_message(exc)}
     if caught:
         doc["warnings"] = [str(w.message) for w in caught]
     return doc

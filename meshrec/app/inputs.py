@@ -10,11 +10,12 @@ from pathlib import Path
 
 from meshrec.io.touch import TouchData
 from meshrec.model.library import bundled_model_sets, bundled_models_dir
-from meshrec.recognition.units import convert_touch, read_units_note
+from meshrec.recognition.units import UNIT_MISMATCH, convert_touch, read_units_note
 
 __all__ = [
     "STDIN",
     "STDIN_NAME",
+    "error_message",
     "library",
     "model_folder",
     "model_units",
@@ -179,3 +180,13 @@ def library(args, folder: Path, progress=None):
     return ModelLibrary.from_folder(
         folder, cache_dir=args.cache_dir, force=getattr(args, "force", False), progress=progress
     )
+
+
+def error_message(exc: ValueError) -> str:
+    """The one-line message of a bad-input error, with what to do about a unit mismatch."""
+    if UNIT_MISMATCH in str(exc):
+        return (
+            f"{exc} (give the touch's unit with --units, and the models' with --model-units "
+            "or a meshrec.json note in their folder)"
+        )
+    return str(exc)

@@ -19,10 +19,22 @@ from meshrec import defaults
 from meshrec.io.touch import TouchData
 from meshrec.model.library import UNITS_NOTE
 
-__all__ = ["UNITS", "UNITS_NOTE", "check_units", "convert_touch", "read_units_note", "unit_factor"]
+__all__ = [
+    "UNITS",
+    "UNITS_NOTE",
+    "UNIT_MISMATCH",
+    "check_units",
+    "convert_touch",
+    "read_units_note",
+    "unit_factor",
+]
 
 #: The length units understood, in metres.
 UNITS: dict[str, float] = {"mm": 1e-3, "cm": 1e-2, "m": 1.0, "in": 0.0254}
+
+
+#: The words every message of :func:`check_units` holds (the command line adds a hint).
+UNIT_MISMATCH = "likely a unit mismatch"
 
 
 def _unit(value, name: str) -> str:
@@ -160,8 +172,9 @@ def check_units(touch: TouchData, models) -> None:
     ------
     ValueError
         If the touch is larger than ``defaults.UNIT_MAX_TOUCH_DIAGONALS`` times every
-        model's diagonal, or smaller than ``1 / defaults.UNIT_MISMATCH_RATIO`` of it, or
-        ``models`` is empty; the message says "likely a unit mismatch".
+        model's diagonal, or smaller than ``1 / defaults.UNIT_MISMATCH_RATIO`` of it (the
+        message holds :data:`UNIT_MISMATCH`, "likely a unit mismatch"), or ``models`` is
+        empty.
     """
     models = list(models)
     if not models:
@@ -185,6 +198,6 @@ def check_units(touch: TouchData, models) -> None:
     raise ValueError(
         f"the touch data ({size:.4g} across) is {factor:.3g} times {way} than the "
         f"nearest-sized model {models[k].name!r} (bounding-box diagonal {diagonals[k]:.4g}), "
-        f"beyond {limit} for every model: likely a unit mismatch (mm vs m?); touch data "
+        f"beyond {limit} for every model: {UNIT_MISMATCH} (mm vs m?); touch data "
         "and models must be in the same units"
     )
