@@ -169,3 +169,20 @@ def test_model_units_given_for_a_folder_without_a_note(env, metres, tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().splitlines()[-1].startswith("recognised: sphere")
+
+
+def test_models_lists_what_a_library_would_skip(env, tmp_path):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    trimesh.creation.box(extents=[1.0, 2.0, 2.0]).export(folder / "a.stl")
+    trimesh.creation.box(extents=[1.0, 1.0, 1.0]).export(folder / "a.obj")  # same name
+    (folder / "broken.stl").write_text("solid nothing\nendsolid\n")  # no triangle
+    proc = _run(["models", str(folder), "--json"], env, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["units"] is None
+    assert [m["name"] for m in doc["models"]] == ["a"]
+    assert doc["models"][0]["size"] == pytest.approx(math.sqrt(3.0))  # a.obj comes first
+    reasons = {s["file"]: s["reason"] for s in doc["skipped"]}
+    assert set(reasons) == {"a.stl", "broken.stl"}
+    assert reasons["a.stl"] == "duplicate model name 'a'"
