@@ -222,9 +222,15 @@ TOUCH_MIN_RELATIVE_EXTENT = 1e-9
 #: lengths underflow).
 TOUCH_MIN_EXTENT = 1e-9
 #: A touch whose extent (bounding-box diagonal of all its points) is more than this many
-#: times larger, or smaller, than sqrt(surface area) of every model is refused as a likely
-#: unit mismatch. Simulated touches measure about 0.3 sqrt(area); millimetres against
-#: metres make it 300 or 0.0003.
+#: times larger than the bounding-box diagonal of every model is refused as a likely unit
+#: mismatch: curves on a surface lie inside the model's box, so 1 is the most a real touch
+#: can measure; 2 leaves room for noise. Simulated touches measure about 0.3 of the
+#: diagonal; millimetres against metres make it 300 (a touch of 1 mm in millimetres still
+#: exceeds a 0.3 m model's box 3 times).
+UNIT_MAX_TOUCH_DIAGONALS = 2.0
+#: ... and one more than this many times smaller than every model's diagonal is refused
+#: too: metres against millimetres make a simulated touch 0.0003 of it, while a real
+#: touch of a few millimetres on a 300 mm object is still 0.01.
 UNIT_MISMATCH_RATIO = 100.0
 #: Most curves in a touch (a probe traces three; the pairwise checks of the curves cost
 #: the square of their number).

@@ -217,7 +217,7 @@ CASES = {
     "straight_line": Case(
         lambda f, g, s: write_csv(
             f / "line.csv",
-            [np.linspace(a, a + 1, 11)[:, None] * [1.0, 2.0, 3.0] for a in (0.0, 2.0, -2.0)],
+            [np.linspace(a, a + 0.1, 11)[:, None] * [1.0, 2.0, 3.0] for a in (0.0, 0.2, -0.2)],
         ),
         r"all points of the curves lie on one straight line",
     ),
@@ -440,11 +440,11 @@ def test_the_limits_are_the_defaults(setup):
     bad = TouchData(curves=_shifted(sim.touch, sim, 1, 1.5 * limit))
     with pytest.raises(ValueError, match="do not meet"):
         recognize(bad, setup.library)
-    # a unit factor of UNIT_MISMATCH_RATIO / 10 is still accepted as a (large) touch
-    size = np.ptp(sim.touch.points, axis=0)
-    ratio = float(np.linalg.norm(size)) / setup.library["ball"].scale
-    assert 0.1 < ratio < 1.0  # a simulated touch is a fraction of the model's size
-    factor = 0.5 * defaults.UNIT_MISMATCH_RATIO / ratio
+    # a touch as large as the model (UNIT_MAX_TOUCH_DIAGONALS / 2) is accepted, not a unit error
+    size = float(np.linalg.norm(np.ptp(sim.touch.points, axis=0)))
+    diagonal = float(np.linalg.norm(np.ptp(setup.library["ball"].vertices, axis=0)))
+    assert 0.1 < size / diagonal < 1.0  # a simulated touch is a fraction of the model's size
+    factor = 0.5 * defaults.UNIT_MAX_TOUCH_DIAGONALS * diagonal / size
     big = TouchData(curves=[c * factor for c in sim.touch.curves])
     rec = recognize(big, setup.library)
     assert rec.best is None  # far too big to fit, but not a unit error

@@ -421,8 +421,9 @@ def test_recognize_refuses_malformed_arguments(world, which, value):
         ({"max_candidates": 1.5}, TypeError, "max_candidates must be an integer, got float"),
         ({"max_candidates": 0}, ValueError, "max_candidates must be >= 1, got 0"),
         ({"searches": True}, TypeError, "searches must be an integer, got bool"),
-        ({"rival_error": "1"}, TypeError, "rival_error must be a real number, got str"),
-        ({"rival_error": float("nan")}, ValueError, "rival_error must be finite"),
+        ({"lookup_scale": "1"}, TypeError, "lookup_scale must be a real number, got str"),
+        ({"lookup_scale": float("nan")}, ValueError, "lookup_scale must be finite"),
+        ({"lookup_scale": 0.0}, ValueError, "lookup_scale must be > 0"),
     ],
 )
 def test_register_argument_checks(world, kwargs, error, match):

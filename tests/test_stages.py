@@ -259,8 +259,7 @@ def test_stage_inputs_are_checked(surfaces, touch, traced):
             "lookup_scale must be a positive finite number, got 0.0",
         ),
         (lambda: register(touch, model, lookup_scale=np.inf), "lookup_scale must be"),
-        (lambda: register(touch, model, lookup_scale=True), "lookup_scale must be"),
-        (lambda: register(touch, model, searches=0), "searches must be a positive integer"),
+        (lambda: register(touch, model, searches=0), "searches must be >= 1, got 0"),
         (lambda: register(touch, model, method="x"), "method must be one of"),
         (lambda: phi_brackets(model, cands, steps=2), "steps must be an integer >= 3, got 2"),
         (lambda: refine_phis(model, fewer, brackets, [0]), "brackets must be of these"),
@@ -289,6 +288,8 @@ def test_stage_inputs_are_checked(surfaces, touch, traced):
     for call, match in cases:
         with pytest.raises(ValueError, match=match):
             call()
+    with pytest.raises(TypeError, match="lookup_scale must be a real number, got bool"):
+        register(touch, model, lookup_scale=True)
 
 
 def test_phi_brackets_refuses_no_candidates(surfaces, touch, traced):

@@ -1,4 +1,13 @@
-"""The ``meshrec`` command line: parses arguments and calls the public API, nothing more."""
+"""The ``meshrec`` command line: parses arguments and calls the public API, nothing more.
+
+Exit status: 0 success, 2 bad input (one line on stderr), 130 interrupted (Ctrl-C), 141
+standard output closed by its reader (a broken pipe).
+
+Only the standard library is imported at module level, and ``meshrec/__init__`` imports
+its public names lazily: everything heavy (numpy, scipy, trimesh, libigl) is loaded inside
+:func:`main`, so that Ctrl-C at any moment after the interpreter starts ends the program
+quietly with status 130 rather than with a traceback from the middle of an import.
+"""
 
 from __future__ import annotations
 
@@ -7,25 +16,24 @@ import json
 import sys
 import warnings
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from meshrec import defaults
 from meshrec._version import __version__
-from meshrec.io.checks import check_vector, one_line
-from meshrec.io.touch import TouchData
-from meshrec.model.library import ModelLibrary, bundled_models_dir
-from meshrec.recognition.recognize import Recognition, recognize
-from meshrec.registration.register import touch_geometry
-from meshrec.sim.simulate import simulate_touch
+from meshrec.app.commands_viz import add_viz_parsers
+
+if TYPE_CHECKING:
+    from meshrec.recognition.recognize import Recognition
 
 __all__ = ["main", "recognition_to_json"]
 
 _VECTOR_OPTIONS = ("--contact", "--normal")
 
 
-def _vector(text: str) -> np.ndarray:
+def _vector(text: str):
     """Parse ``X,Y,Z`` for ``--contact`` and ``--normal`` (checked by check_vector)."""
+    from meshrec.io.checks import check_vector, one_line  # numpy: only once an option is used
+
     try:
         values = [float(p) for p in text.replace(" ", "").split(",")]
     except ValueError:
@@ -47,6 +55,9 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"meshrec: error: {message} (see '{self.prog} --help')\n")
 
 
+_UNIT_CHOICES = ("mm", "cm", "m", "in")  # meshrec.recognition.units.UNITS (not imported here)
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(
         prog="meshrec",
@@ -59,9 +70,16 @@ def _parser() -> argparse.ArgumentParser:
     def models_arg(sp):
         sp.add_argument(
             "--models",
-            type=Path,
             default=None,
-            help="folder of model meshes (default: the bundled paper surfaces)",
+            metavar="DIR|SET",
+            help="folder of model meshes, or the name of a bundled set (surfaces, objects; "
+            "see 'meshrec models'); default: the bundled paper surfaces",
+        )
+        sp.add_argument(
+            "--model-units",
+            choices=_UNIT_CHOICES,
+            default=None,
+            help="the models' length unit (default: the folder's meshrec.json note, if any)",
         )
         sp.add_argument(
             "--cache-dir",
@@ -70,9 +88,27 @@ def _parser() -> argparse.ArgumentParser:
             help="index cache folder (default: $MESHREC_CACHE_DIR or the user cache)",
         )
 
+    def touch_arg(sp, nargs=None):
+        sp.add_argument(
+            "touch_file",
+            nargs=nargs,
+            help="touch file (.csv curve,x,y,z or .json), or - for standard input",
+        )
+        sp.add_argument(
+            "--units",
+            choices=_UNIT_CHOICES,
+            default=None,
+            help="the touch's length unit: converted to the models' when theirs are known",
+        )
+
     r = sub.add_parser("recognize", help="rank the models by how well the touch fits them")
-    r.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
+    touch_arg(r, nargs="+")
     models_arg(r)
+    r.add_argument(
+        "--batch",
+        action="store_true",
+        help="many touch files, one touch each: one JSON line per file (JSON Lines)",
+    )
     r.add_argument("--contact", type=_vector, help="the curves' common point X,Y,Z")
     r.add_argument("--normal", type=_vector, help="approximate outward normal X,Y,Z")
     r.add_argument("--top", type=int, default=None, help="show only the N best models")
@@ -88,6 +124,15 @@ def _parser() -> argparse.ArgumentParser:
     models_arg(i)
     i.add_argument("--force", action="store_true", help="rebuild even if cached")
 
+    m = sub.add_parser(
+        "models", help="list the bundled model sets, or what a model folder holds"
+    )
+    m.add_argument(
+        "folder", nargs="?", default=None, metavar="DIR|SET", help="a model folder or set"
+    )
+    m.add_argument("--model-units", choices=_UNIT_CHOICES, default=None, help="the models' unit")
+    m.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
     s = sub.add_parser("simulate", help="simulate a touch on a model (three plane sections)")
     s.add_argument("model_file", help="model mesh file, or the name of a bundled model")
     s.add_argument("-o", "--output", type=Path, required=True, help="touch file to write")
@@ -97,34 +142,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--points", type=int, default=defaults.SIM_POINTS, help="points per curve")
     s.add_argument("--length", type=float, default=None, help="curve length (model units)")
     s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
-    _add_viz_parsers(sub, models_arg)
+    add_viz_parsers(sub, models_arg, touch_arg)
     return p
-
-
-def _progress_printer(stream):
-    tty = stream.isatty()
-
-    def progress(i: int, n: int, name: str) -> None:
-        if tty:  # one line, redrawn; the caller ends it (after the library is built)
-            width = 30
-            done = int(width * i / max(n, 1))
-            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:40]:<40}")
-        else:
-            stream.write(f"indexing {i + 1}/{n}: {name}\n")
-        stream.flush()
-
-    return progress
-
-
-def _resolve_model_file(text: str) -> Path:
-    path = Path(text)
-    if path.exists():
-        return path
-    for lib in ("surfaces", "objects"):
-        folder = bundled_models_dir(lib)
-        for candidate in sorted(folder.glob(f"{text}.*")):
-            return candidate
-    raise ValueError(f"model_file {one_line(text)}: no such file, nor a bundled model of that name")
 
 
 def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
@@ -169,6 +188,8 @@ def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
 
 
 def _print_table(rec: Recognition, top: int | None, out) -> None:
+    import numpy as np
+
     g = rec.geometry
     out.write(
         f"touch: {rec.touch.n_points} points on {len(rec.touch.curves)} curves; "
@@ -190,196 +211,79 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
     out.write(f"recognised: {best}  ({rec.seconds:.2f} s)\n")
 
 
-def _library(args, progress=None) -> ModelLibrary:
-    folder = args.models if args.models is not None else bundled_models_dir("surfaces")
-    return ModelLibrary.from_folder(
-        folder, cache_dir=args.cache_dir, force=getattr(args, "force", False), progress=progress
+def _run_recognize(args) -> int:
+    from meshrec.app import inputs
+    from meshrec.recognition.recognize import recognize
+
+    if args.top is not None and args.top < 1:
+        raise ValueError(f"--top must be at least 1, got {args.top}")
+    names = args.touch_file
+    if names.count(inputs.STDIN) > 1:
+        raise ValueError("touch file - (standard input) can be given only once")
+    folder = inputs.model_folder(args.models)
+    units = inputs.model_units(folder, args.model_units)
+    if args.batch:
+        return _run_batch(args, names, folder, units)
+    if len(names) > 1:
+        raise ValueError(
+            f"recognize takes one touch file, got {len(names)}: use --batch to recognise "
+            "each of many files (JSON Lines)"
+        )
+    args.touch_file = names[0]
+    touch, geometry = inputs.touch_and_geometry(args, folder, units)
+    library = inputs.library(args, folder)
+    rec = recognize(touch, library, method=args.method, geometry=geometry)
+    if args.json:
+        sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
+    else:
+        _print_table(rec, args.top, sys.stdout)
+    return 0
+
+
+def _run_batch(args, names, folder, units) -> int:
+    from meshrec.app import inputs
+    from meshrec.app.commands_batch import run_batch
+
+    for option in ("contact", "normal"):
+        if getattr(args, option) is not None:
+            raise ValueError(f"--{option} gives one touch's hint: not with --batch")
+    touch_units = inputs.touch_units(args.units, units)
+    library = inputs.library(args, folder)
+    failed = run_batch(
+        names,
+        library,
+        sys.stdout,
+        lambda rec: recognition_to_json(rec, args.top),
+        units=touch_units,
+        models_units=units,
+        method=args.method,
     )
+    if failed:
+        raise ValueError(
+            f"{failed} of {len(names)} touch files failed (their JSON lines have an "
+            '"error" key)'
+        )
+    return 0
 
 
 def _run(args) -> int:
     if args.command in ("show", "plot"):
-        return _run_viz(args)
-    if args.command == "recognize":
-        if args.top is not None and args.top < 1:
-            raise ValueError(f"--top must be at least 1, got {args.top}")
-        touch, geometry = _read_touch(args)
-        library = _library(args)
-        rec = recognize(touch, library, method=args.method, geometry=geometry)
-        if args.json:
-            sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
-        else:
-            _print_table(rec, args.top, sys.stdout)
-        return 0
+        from meshrec.app.commands_viz import run_viz
+
+        return run_viz(args)
+    if args.command == "models":
+        from meshrec.app.commands_models import run_models
+
+        return run_models(args, sys.stdout)
     if args.command == "index":
-        library = _library(args, progress=_progress_printer(sys.stderr))
-        if sys.stderr.isatty():
-            sys.stderr.write("\n")  # end the progress line
-        for m in library.models:
-            how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
-            sys.stdout.write(
-                f"{m.name:<24} {len(m.faces):>8} faces  {int(m.valid.sum()):>8} table entries  "
-                f"{how}\n"
-            )
-        return 0
-    # simulate
-    model_file = _resolve_model_file(args.model_file)
-    sim = simulate_touch(
-        model_file,
-        contact=args.contact,
-        rng=args.seed,
-        n_points=args.points,
-        noise=args.noise,
-        length=args.length,
-    )
-    sim.write(args.output, args.truth)  # the truth file only with --truth
-    c = np.array2string(sim.contact, precision=5)
-    truth = f"truth in {one_line(args.truth)}" if args.truth else "no truth file (use --truth)"
-    sys.stdout.write(
-        f"wrote {one_line(args.output)}: {len(sim.touch.curves)} curves x {args.points} "
-        f"points on {one_line(sim.model)}, true contact {c}; {truth}\n"
-    )
-    return 0
+        from meshrec.app.commands_simple import run_index
 
+        return run_index(args, sys.stdout, sys.stderr)
+    if args.command == "simulate":
+        from meshrec.app.commands_simple import run_simulate
 
-def _size_arg(text: str) -> tuple[int, int]:
-    """Parse ``WxH`` (pixels) for ``--size``."""
-    parts = text.lower().split("x")
-    try:
-        w, h = (int(v) for v in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, got {text!r}") from None
-    if w < 1 or h < 1:
-        raise argparse.ArgumentTypeError(f"expected positive WIDTHxHEIGHT, got {text!r}")
-    return w, h
-
-
-def _add_viz_parsers(sub, models_arg) -> None:
-    """The ``show`` and ``plot`` subcommands (pictures; need the ``viz`` extra)."""
-    v = sub.add_parser(
-        "show", help="view the registration in 3D (open3d window, or a PNG with --screenshot)"
-    )
-    v.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
-    models_arg(v)
-    v.add_argument("--model", help="model to show (default: the recognised one)")
-    v.add_argument("--truth", type=Path, help="truth JSON (meshrec simulate --truth)")
-    v.add_argument("--screenshot", type=Path, help="render off-screen to this PNG, no window")
-    v.add_argument("--size", type=_size_arg, default=(1024, 768), help="WxH pixels (1024x768)")
-    v.add_argument(
-        "--view",
-        choices=("contact", "model"),
-        default="contact",
-        help="frame the contact region (default) or the whole model",
-    )
-
-    pl = sub.add_parser("plot", help="the paper's figures as PNG plots (matplotlib)")
-    kinds = pl.add_subparsers(dest="plot", required=True)
-    ph = kinds.add_parser("phi", help="error against phi at a candidate (Figure 2)")
-    se = kinds.add_parser("search", help="candidates and local-search paths (Figure 3)")
-    for q in (ph, se):
-        q.add_argument("touch_file", type=Path, help="touch file (.csv curve,x,y,z or .json)")
-        models_arg(q)
-        q.add_argument("--model", help="model (default: the recognised one)")
-        q.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
-        q.add_argument("--size", type=_size_arg, default=None, help="WxH pixels")
-    ph.add_argument(
-        "--candidate",
-        type=int,
-        default=None,
-        help="candidate index (default: the one with the least sampled error)",
-    )
-    se.add_argument("--truth", type=Path, help="truth JSON: mark the true contact")
-
-
-def _read_touch(args):
-    """The touch file with its hints, and its local geometry: bad data fail here, before
-    any model is indexed."""
-    touch = TouchData.from_file(args.touch_file)
-    contact, normal = getattr(args, "contact", None), getattr(args, "normal", None)
-    if contact is not None or normal is not None:
-        touch = touch.with_hints(contact=contact, normal=normal)
-    try:
-        geometry = touch_geometry(touch)
-    except ValueError as exc:
-        raise ValueError(f"touch file {args.touch_file}: {exc}") from exc
-    return touch, geometry
-
-
-def _model_arg(args, library):
-    """The model named by ``--model``, or None when it is not given."""
-    if args.model is None:
-        return None
-    if args.model not in library:
-        raise ValueError(f"--model must be one of {list(library.names)}, got {args.model!r}")
-    return library[args.model]
-
-
-def _viz_registration(args, touch, geometry, library):
-    """(model index, registration) for ``--model`` or the recognised model."""
-    from meshrec.registration.register import register
-
-    model = _model_arg(args, library)
-    if model is not None:
-        reg = register(touch, model, geometry=geometry)
-        if reg.rejected:
-            raise ValueError(f"--model {args.model}: {reg.reason}")
-        return model, reg
-    rec = recognize(touch, library, geometry=geometry)
-    if rec.best is None:
-        raise ValueError("no model recognised: the table lookup rejected every model")
-    return library[rec.best.model], rec.best
-
-
-def _run_viz(args) -> int:
-    from meshrec.figures import (
-        plots,  # they import open3d and matplotlib only when drawing
-        viz,  # they import open3d and matplotlib only when drawing
-    )
-
-    try:
-        if args.command == "show":  # fail fast, before any work, without the viz extra
-            if args.screenshot is None:
-                viz.check_display()
-            viz.check_offscreen()
-        else:
-            plots.check_matplotlib()
-        out_path = args.screenshot if args.command == "show" else args.output
-        if out_path is not None and out_path.suffix.lower() != ".png":
-            raise ValueError(f"{out_path} must end in .png")
-        touch, geometry = _read_touch(args)
-        library = _library(args)
-        if args.command == "show":
-            model, reg = _viz_registration(args, touch, geometry, library)
-            kw = dict(touch=touch, truth=args.truth, mesh=model, size=args.size, view=args.view)
-            if args.screenshot is None:
-                viz.show(reg, **kw)
-                return 0
-            snap = viz.render(reg, args.screenshot, **kw)
-            c = np.array2string(reg.contact, precision=5)
-            sys.stdout.write(
-                f"wrote {snap.path} ({snap.size[0]}x{snap.size[1]}): {reg.model}, "
-                f"contact {c}, error {reg.error:.4g}\n"
-            )
-            return 0
-        size = {} if args.size is None else {"size": args.size}
-        if args.plot == "phi":
-            from meshrec.registration.register import register
-
-            model = _model_arg(args, library)
-            if model is None:
-                model, _ = _viz_registration(args, touch, geometry, library)
-            reg = register(touch, model, geometry=geometry, trace=True)
-            profile = plots.phi_profile(reg, model, candidate=args.candidate)
-            out = plots.phi_figure(profile, args.output, **size)
-            detail = f"candidate {profile.candidate}, phi {profile.phi:.4f} rad"
-        else:
-            model, reg = _viz_registration(args, touch, geometry, library)
-            out = plots.search_figure(reg, args.output, mesh=model, truth=args.truth, **size)
-            detail = f"{reg.candidates} candidates, {len(reg.search_paths)} searches"
-        sys.stdout.write(f"wrote {out}: {model.name}, {detail}\n")
-        return 0
-    except (viz.VizDependencyError, viz.RenderError) as exc:
-        raise ValueError(str(exc)) from None
+        return run_simulate(args, sys.stdout)
+    return _run_recognize(args)
 
 
 def _join_vector_options(argv: list[str]) -> list[str]:
@@ -397,7 +301,25 @@ def _join_vector_options(argv: list[str]) -> list[str]:
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    from meshrec.io.checks import one_line
+
     (file or sys.stderr).write(f"meshrec: warning: {one_line(str(message), None)}\n")
+
+
+def _interrupted() -> int:
+    """Ctrl-C: one line, status 130. A second Ctrl-C is ignored from here on (in the
+    program's main thread), so that the exit itself is not interrupted."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        sys.stderr.write("meshrec: interrupted\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):  # stderr closed
+        pass
+    return 130
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -411,29 +333,76 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 on bad input (one line on stderr, no traceback).
+        0 on success, 2 on bad input (one line on stderr, no traceback), 130 when
+        interrupted by Ctrl-C (SIGINT), at any moment: one line, no traceback; 141,
+        silently, when standard output is a pipe closed by its reader.
     """
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        return _interrupted()
+
+
+def _exit_on_sigint(signum, frame):  # pragma: no cover - runs in the killed process
+    import os
+
+    os.write(2, b"meshrec: interrupted\n")
+    os._exit(130)
+
+
+def _load_core() -> None:
+    """Import numpy, scipy, trimesh and libigl with Ctrl-C ending the process at once.
+
+    A KeyboardInterrupt cannot be relied on here: trimesh imports its optional
+    dependencies under ``except BaseException`` and swallows it (measured: SIGINT 0.3 s
+    into start-up was ignored and the run went on to the end). Nothing has been written
+    yet, so exiting at once with status 130 leaves nothing half-done.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        previous = None
+    else:
+        previous = signal.signal(signal.SIGINT, _exit_on_sigint)
+    try:
+        import meshrec.model.library
+        import meshrec.recognition.recognize
+        import meshrec.sim.simulate  # noqa: F401
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = _parser()
     argv = _join_vector_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    _load_core()
     previous = warnings.showwarning
     warnings.showwarning = _one_line_warning
     try:
         return _run(args)
     except ValueError as exc:
-        sys.stderr.write(f"meshrec: error: {one_line(str(exc), None)}\n")
+        from meshrec.app.inputs import error_message
+
+        sys.stderr.write(f"meshrec: error: {error_message(exc)}\n")
         return 2
+    except BrokenPipeError:  # the reader of stdout went away (``| head -1``): stop quietly
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error
+        return 141  # what the shell shows for a process killed by SIGPIPE
     except OSError as exc:  # e.g. an output file that cannot be written
+        from meshrec.io.checks import one_line
+
         target = exc.filename2 or exc.filename  # a rename's destination, else the file
         where = f" {one_line(target)}:" if target else ""
         sys.stderr.write(f"meshrec: error:{where} {one_line(str(exc.strerror or exc), None)}\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write("meshrec: interrupted\n")
-        return 130
     finally:
         warnings.showwarning = previous
 

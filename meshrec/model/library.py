@@ -18,6 +18,10 @@ __all__ = ["LibraryWarning", "ModelLibrary", "ProgressCallback", "bundled_models
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
 ProgressCallback = Callable[[int, int, str], None]
 
+#: The name of a model folder's units note (``{"units": "mm"}``), which libraries ignore;
+#: read by :func:`meshrec.recognition.units.read_units_note`.
+UNITS_NOTE = "meshrec.json"
+
 
 class LibraryWarning(UserWarning):
     """A file of a model library was skipped."""
@@ -56,7 +60,8 @@ class ModelLibrary:
         Files are taken in sorted order. A file whose ending is not in
         :data:`meshrec.model.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
         file that cannot be loaded, or one whose name (stem) repeats an earlier one, is
-        skipped with a warning; hidden files (``.name``) and sub-folders are ignored.
+        skipped with a warning; hidden files (``.name``), the units note :data:`UNITS_NOTE`
+        and sub-folders are ignored.
         Nothing is ever written into ``folder`` (the cache lives in ``cache_dir``).
 
         Parameters
@@ -94,32 +99,10 @@ class ModelLibrary:
             message lists every file and why it failed).
         """
         root = Path(folder)
-        if not root.exists():
-            raise ValueError(f"model folder {str(root)!r} does not exist")
-        if not root.is_dir():
-            raise ValueError(f"model folder {str(root)!r} is not a directory")
+        files, skipped = folder_mesh_files(root)
         refuse_model_folder(cache_dir if cache_dir is not None else default_cache_dir(), root)
-        try:
-            entries = sorted(p for p in root.iterdir() if p.is_file())
-        except OSError as exc:
-            raise ValueError(
-                f"model folder {str(root)!r} cannot be listed ({exc.strerror})"
-            ) from exc
-        files = [p for p in entries if is_mesh_file(p)]
-        others = [p for p in entries if not is_mesh_file(p) and not p.name.startswith(".")]
-        if not files:
-            raise ValueError(
-                f"model folder {str(root)!r} holds no mesh file "
-                f"({', '.join(MESH_SUFFIXES)})"
-                + (f"; it holds {', '.join(p.name for p in others[:5])}" if others else "")
-            )
-        skipped = []
-        for p in others:
-            ending = repr(p.suffix) if p.suffix else "none"
-            reason = f"not a mesh file (ending {ending}, expected {', '.join(MESH_SUFFIXES)})"
-            skipped.append((p, reason))
         return cls._build(
-            root, files, params, cache_dir, force, progress, what=f"{root}", skipped=skipped
+            root, files, params, cache_dir, force, progress, what=f"{root}", skipped=list(skipped)
         )
 
     @classmethod
@@ -257,10 +240,89 @@ class ModelLibrary:
         return f"ModelLibrary({where!r}, models={list(self.names)}, skipped={len(self.skipped)})"
 
 
+def folder_mesh_files(
+    folder: str | os.PathLike,
+) -> tuple[tuple[Path, ...], tuple[tuple[Path, str], ...]]:
+    """The mesh files directly inside a model folder, as :meth:`ModelLibrary.from_folder`
+    takes them, and the other files it skips (with the reason).
+
+    Hidden files (``.name``), the units note :data:`UNITS_NOTE` and sub-folders are left
+    out of both.
+
+    Parameters
+    ----------
+    folder : str or path-like
+
+    Returns
+    -------
+    files : tuple of Path
+        Sorted mesh files (by ending, see :data:`meshrec.model.mesh.MESH_SUFFIXES`).
+    skipped : tuple of (Path, str)
+        The other files, with why they are not used.
+
+    Raises
+    ------
+    ValueError
+        If ``folder`` does not exist, is not a directory or cannot be listed, or holds no
+        mesh file.
+    """
+    root = Path(folder)
+    if not root.exists():
+        raise ValueError(f"model folder {str(root)!r} does not exist")
+    if not root.is_dir():
+        raise ValueError(f"model folder {str(root)!r} is not a directory")
+    try:
+        entries = sorted(p for p in root.iterdir() if p.is_file())
+    except OSError as exc:
+        raise ValueError(
+            f"model folder {str(root)!r} cannot be listed ({exc.strerror})"
+        ) from exc
+    files = [p for p in entries if is_mesh_file(p)]
+    others = [
+        p
+        for p in entries
+        if not is_mesh_file(p) and not p.name.startswith(".") and p.name != UNITS_NOTE
+    ]
+    if not files:
+        raise ValueError(
+            f"model folder {str(root)!r} holds no mesh file "
+            f"({', '.join(MESH_SUFFIXES)})"
+            + (f"; it holds {', '.join(p.name for p in others[:5])}" if others else "")
+        )
+    skipped = []
+    for p in others:
+        ending = repr(p.suffix) if p.suffix else "none"
+        reason = f"not a mesh file (ending {ending}, expected {', '.join(MESH_SUFFIXES)})"
+        skipped.append((p, reason))
+    return tuple(files), tuple(skipped)
+
+
 def _bundled_roots() -> tuple[Path, ...]:
     """Where bundled libraries may live: the installed copy first, then the repository's."""
     package = Path(__file__).resolve().parents[1]
     return (package / "_bundled_models", package.parent / "models")
+
+
+def bundled_model_sets() -> tuple[str, ...]:
+    """The names of the bundled model libraries (for example ``("objects", "surfaces")``).
+
+    Returns
+    -------
+    tuple of str
+        Sorted; the folders found by :func:`bundled_models_dir`.
+    """
+    roots = _bundled_roots()
+    return tuple(
+        sorted(
+            {
+                p.name
+                for root in roots
+                if root.is_dir()
+                for p in root.iterdir()
+                if p.is_dir() and not p.name.startswith((".", "_"))
+            }
+        )
+    )
 
 
 def bundled_models_dir(name: str = "surfaces") -> Path:
@@ -292,15 +354,7 @@ def bundled_models_dir(name: str = "surfaces") -> Path:
         candidate = root / name
         if candidate.is_dir():
             return candidate
-    available = sorted(
-        {
-            p.name
-            for root in roots
-            if root.is_dir()
-            for p in root.iterdir()
-            if p.is_dir() and not p.name.startswith((".", "_"))
-        }
-    )
+    available = bundled_model_sets()
     raise ValueError(
         f"no bundled model library named {name!r}; available: "
         + (", ".join(available) if available else "none (no bundled models found)")

@@ -6,13 +6,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
-
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.recognition.units import check_units
 from meshrec.registration.register import Registration, register, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
 
@@ -57,45 +56,6 @@ class Recognition:
         )
 
 
-def _check_units(touch: TouchData, models: list) -> None:
-    """Refuse a touch whose size is out of all proportion to every model's.
-
-    The touch's size is the bounding-box diagonal of all its points; a model's is
-    ``sqrt(surface area)``. The curves lie on the surface, so a touch many times larger
-    than every model, or many times smaller (``defaults.UNIT_MISMATCH_RATIO``), is almost
-    surely in other units than the models (millimetres against metres: a factor 1000).
-
-    Parameters
-    ----------
-    touch : TouchData
-    models : list of ModelIndex
-        At least one.
-
-    Raises
-    ------
-    ValueError
-        If ``size / scale`` exceeds ``defaults.UNIT_MISMATCH_RATIO`` or is below its
-        inverse for every model; the message says "likely a unit mismatch".
-    """
-    pts = touch.points
-    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-    if not size > 0.0:
-        return  # a point-like touch: the geometry estimate says what is wrong with it
-    scales = np.array([float(m.scale) for m in models])
-    ratio = size / scales
-    limit = defaults.UNIT_MISMATCH_RATIO
-    if np.all(ratio > limit) or np.all(ratio < 1.0 / limit):
-        k = int(np.argmin(np.abs(np.log(np.maximum(ratio, 1e-300)))))
-        way = "larger" if ratio[k] > 1.0 else "smaller"
-        factor = ratio[k] if ratio[k] > 1.0 else 1.0 / ratio[k]
-        raise ValueError(
-            f"the touch data ({size:.4g} across) is {factor:.3g} times {way} than the "
-            f"nearest-sized model {models[k].name!r} (sqrt(area) {scales[k]:.4g}), beyond "
-            f"defaults.UNIT_MISMATCH_RATIO = {limit:g} for every model: likely a unit "
-            "mismatch (mm vs m?); touch data and models must be in the same units"
-        )
-
-
 def recognize(
     touch: TouchData,
     library,
@@ -132,7 +92,8 @@ def recognize(
         checks of :mod:`meshrec.io.checks`).
     ValueError
         If the library is empty, ``method`` is unknown, the touch's size is out of all
-        proportion to every model's (a likely unit mismatch, see ``_check_units``), or
+        proportion to every model's (a likely unit mismatch, see
+        :func:`meshrec.recognition.units.check_units`), or
         the curves do not allow an estimate of the local geometry.
     """
     t0 = time.perf_counter()
@@ -151,7 +112,7 @@ def recognize(
         check_instance(model, ModelIndex, f"library[{i}]")
     if not models:
         raise ValueError("library must hold at least one model, got none")
-    _check_units(touch, models)
+    check_units(touch, models)
     if geometry is None:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),

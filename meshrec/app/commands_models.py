@@ -1,0 +1,104 @@
+"""``meshrec models``: the bundled model sets, or what a model folder holds."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import igl
+import numpy as np
+
+from meshrec.app.inputs import model_folder, model_units
+from meshrec.model.library import bundled_model_sets, bundled_models_dir, folder_mesh_files
+from meshrec.model.mesh import load_mesh
+from meshrec.recognition.units import read_units_note
+
+__all__ = ["list_bundled", "list_folder", "run_models"]
+
+
+def list_bundled() -> dict:
+    """The bundled sets: ``{"sets": [{"name", "folder", "models", "units"}]}``."""
+    sets = []
+    for name in bundled_model_sets():
+        folder = bundled_models_dir(name)
+        files, _ = folder_mesh_files(folder)
+        sets.append(
+            {
+                "name": name,
+                "folder": str(folder),
+                "models": [p.stem for p in files],
+                "units": read_units_note(folder),
+            }
+        )
+    return {"sets": sets}
+
+
+def list_folder(folder: Path, units: str | None) -> dict:
+    """What a model folder holds, each mesh loaded and cleaned as the index loads it.
+
+    Returns
+    -------
+    dict
+        ``{"folder", "units", "models": [{"name", "file", "faces", "vertices", "size",
+        "mean_edge"}], "skipped": [{"file", "reason"}]}``; ``size`` is the bounding-box
+        diagonal and ``mean_edge`` the mean edge length, in the models' units.
+
+    Raises
+    ------
+    ValueError
+        If the folder cannot be listed or holds no mesh file.
+    """
+    files, skipped = folder_mesh_files(folder)
+    models, bad = [], [{"file": p.name, "reason": r} for p, r in skipped]
+    seen: set[str] = set()
+    for path in files:
+        if path.stem in seen:
+            bad.append({"file": path.name, "reason": f"duplicate model name {path.stem!r}"})
+            continue
+        try:
+            V, F = load_mesh(path)
+        except ValueError as exc:
+            bad.append({"file": path.name, "reason": str(exc)})
+            continue
+        seen.add(path.stem)
+        models.append(
+            {
+                "name": path.stem,
+                "file": path.name,
+                "faces": len(F),
+                "vertices": len(V),
+                "size": float(np.linalg.norm(np.ptp(V, axis=0))),
+                "mean_edge": float(igl.avg_edge_length(V, F)),
+            }
+        )
+    return {"folder": str(folder), "units": units, "models": models, "skipped": bad}
+
+
+def run_models(args, out) -> int:
+    """Print the listing of ``meshrec models [DIR|SET] [--json]``; 0."""
+    if args.folder is None:
+        doc = list_bundled()
+        if args.json:
+            out.write(json.dumps(doc) + "\n")
+            return 0
+        out.write(f"{'set':<12} {'units':<6} {'models':>6}  folder\n")
+        for s in doc["sets"]:
+            units = s["units"] or "-"
+            out.write(f"{s['name']:<12} {units:<6} {len(s['models']):>6}  {s['folder']}\n")
+        return 0
+    folder = model_folder(args.folder)
+    doc = list_folder(folder, model_units(folder, args.model_units))
+    if args.json:
+        out.write(json.dumps(doc) + "\n")
+        return 0
+    units = doc["units"] or "unknown"
+    out.write(f"{doc['folder']}: {len(doc['models'])} models, units {units}\n")
+    out.write(f"{'model':<24} {'faces':>8} {'vertices':>9} {'size':>10} {'mean edge':>10}\n")
+    for m in doc["models"]:
+        out.write(
+            f"{m['name']:<24} {m['faces']:>8} {m['vertices']:>9} {m['size']:>10.4g} "
+            f"{m['mean_edge']:>10.4g}\n"
+        )
+    for s in doc["skipped"]:
+        out.write(f"skipped {s['file']}: {s['reason']}\n")
+    return 0

@@ -1,0 +1,85 @@
+"""``meshrec index`` and ``meshrec simulate``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["run_index", "run_simulate"]
+
+
+def _progress_printer(stream):
+    tty = stream.isatty()
+
+    def progress(i: int, n: int, name: str) -> None:
+        if tty:  # one line, redrawn; the caller ends it (after the library is built)
+            width = 30
+            done = int(width * i / max(n, 1))
+            stream.write(f"\r[{'#' * done}{'.' * (width - done)}] {i + 1}/{n} {name[:40]:<40}")
+        else:
+            stream.write(f"indexing {i + 1}/{n}: {name}\n")
+        stream.flush()
+
+    return progress
+
+
+def _resolve_model_file(text: str) -> Path:
+    from meshrec.model.library import bundled_models_dir
+
+    path = Path(text)
+    if path.exists():
+        return path
+    for lib in ("surfaces", "objects"):
+        folder = bundled_models_dir(lib)
+        for candidate in sorted(folder.glob(f"{text}.*")):
+            return candidate
+    from meshrec.io.checks import one_line
+
+    raise ValueError(f"model_file {one_line(text)}: no such file, nor a bundled model of that name")
+
+
+def run_index(args, out, err) -> int:
+    """``meshrec index``: build or refresh the indexes, a progress line per stage on
+    ``err``, a line per model on ``out``; 0."""
+    from meshrec.app import inputs
+
+    folder = inputs.model_folder(args.models)
+    tty = err.isatty()
+    try:
+        library = inputs.library(args, folder, progress=_progress_printer(err))
+    finally:
+        if tty:
+            err.write("\n")  # end the progress line, also when interrupted
+    for m in library.models:
+        how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
+        out.write(
+            f"{m.name:<24} {len(m.faces):>8} faces  {int(m.valid.sum()):>8} table entries  "
+            f"{how}\n"
+        )
+    return 0
+
+
+def run_simulate(args, out) -> int:
+    """``meshrec simulate``: write a simulated touch (and its truth); 0."""
+    import numpy as np
+
+    from meshrec.sim.simulate import simulate_touch
+
+    model_file = _resolve_model_file(args.model_file)
+    sim = simulate_touch(
+        model_file,
+        contact=args.contact,
+        rng=args.seed,
+        n_points=args.points,
+        noise=args.noise,
+        length=args.length,
+    )
+    from meshrec.io.checks import one_line
+
+    sim.write(args.output, args.truth)  # the truth file only with --truth
+    c = np.array2string(sim.contact, precision=5)
+    truth = f"truth in {one_line(args.truth)}" if args.truth else "no truth file (use --truth)"
+    out.write(
+        f"wrote {one_line(args.output)}: {len(sim.touch.curves)} curves x {args.points} "
+        f"points on {one_line(sim.model)}, true contact {c}; {truth}\n"
+    )
+    return 0

@@ -1,0 +1,112 @@
+"""Ctrl-C: the real ``meshrec`` console script, sent SIGINT at seeded moments from start-up
+(while numpy is being imported) to the middle of indexing, exits with status 130, one
+line on stderr and no traceback, and leaves a cache that the next run uses."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+MODELS = Path(__file__).resolve().parents[1] / "models" / "surfaces"
+SCRIPT = Path(sys.executable).with_name("meshrec")
+
+pytestmark = pytest.mark.skipif(
+    not Path("/proc/self/maps").exists() or not SCRIPT.exists(),
+    reason="needs Linux /proc and the installed console script",
+)
+
+
+def _numpy_loaded(pid: int) -> bool:
+    """Whether numpy's compiled core is mapped into the process: it is importing numpy,
+    which the command line does inside main (the heavy part of start-up)."""
+    try:
+        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
+    except (FileNotFoundError, ProcessLookupError, PermissionError):
+        return False
+
+
+def _interrupt(cache: Path, after: float) -> subprocess.CompletedProcess:
+    """Start ``meshrec index --force``, wait until numpy is loading, then ``after`` more
+    seconds, and send SIGINT."""
+    proc = subprocess.Popen(
+        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
+    )
+    deadline = time.monotonic() + 60
+    while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.0002)
+    time.sleep(after)
+    running = proc.poll() is None
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert running, f"the run ended before the signal ({after} s): {err}"
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+# Seeded moments: at once (numpy half-imported), later in start-up (trimesh's imports, where
+# a KeyboardInterrupt used to be swallowed and the run went on), and during the indexing of
+# the four models (start-up about 0.8 s, indexing 2 s, on the 2-core CI machine).
+_rng = np.random.default_rng(15)
+MOMENTS = [
+    0.0,
+    round(float(_rng.uniform(0.05, 0.4)), 3),
+    *np.round(_rng.uniform(0.5, 2.0, size=2), 3).tolist(),
+]
+
+
+@pytest.mark.parametrize("after", MOMENTS)
+def test_ctrl_c_exits_130_quietly(tmp_path, after):
+    cache = tmp_path / "cache"
+    proc = _interrupt(cache, after)
+    assert proc.returncode == 130, (proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    # the progress lines (stderr is not a terminal) and exactly one line more
+    lines = [ln for ln in proc.stderr.splitlines() if not ln.startswith("indexing ")]
+    assert lines == ["meshrec: interrupted"], proc.stderr
+    # nothing half-written: no temporary file left, and the next run completes, reusing
+    # whatever entries were finished
+    if cache.exists():
+        assert [p.name for p in cache.iterdir() if p.name.startswith(".")] == []
+    again = subprocess.run(
+        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert again.returncode == 0, again.stderr
+    assert len(again.stdout.strip().splitlines()) == 4
+
+
+def test_start_up_imports_nothing_heavy():
+    # importing the package and the command line loads no numpy: Ctrl-C during the
+    # heavy imports happens inside main, which turns it into status 130
+    code = (
+        "import sys, meshrec, meshrec.app.cli; "
+        "print(sorted(m for m in ('numpy', 'scipy', 'trimesh', 'igl') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[]"
+
+
+def test_lazy_public_names():
+    import meshrec
+    from meshrec.recognition.recognize import recognize
+
+    assert meshrec.recognize is recognize
+    assert set(meshrec.__all__) - {"__version__"} <= set(dir(meshrec))
+    for name in meshrec.__all__:
+        assert getattr(meshrec, name) is not None
+    with pytest.raises(AttributeError, match="module 'meshrec' has no attribute 'nothing'"):
+        _ = meshrec.nothing
