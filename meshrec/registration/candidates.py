@@ -125,6 +125,7 @@ def find_candidates(
     half_length: float,
     fit_rms: float,
     max_candidates: int = defaults.MAX_CANDIDATES,
+    scale: float = 1.0,
 ) -> CandidateSet:
     """Look up the vertices of ``model`` whose (K, H) match, then spread them.
 
@@ -140,6 +141,8 @@ def find_candidates(
         RMS residual of the curve fits (the data's noise); sets the tolerance.
     max_candidates : int
         Most candidates returned.
+    scale : float
+        Factor on both tolerances (> 1 widens the lookup window).
 
     Returns
     -------
@@ -147,6 +150,7 @@ def find_candidates(
     """
     K, H = k1 * k2, 0.5 * (k1 + k2)
     tol_K, tol_H = curvature_tolerance(k1, k2, half_length, fit_rms)
+    tol_K, tol_H = scale * tol_K, scale * tol_H
     hits = model.lookup(K, H, tol_K, tol_H)
     if len(hits) == 0:
         return CandidateSet(np.zeros(0, dtype=np.int64), 0, tol_K, tol_H)

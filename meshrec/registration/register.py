@@ -194,6 +194,7 @@ def register(
     max_candidates: int = defaults.MAX_CANDIDATES,
     searches: int = defaults.LOCAL_SEARCHES,
     rival_error: float | None = None,
+    lookup_scale: float = 1.0,
 ) -> Registration:
     """Register touch data onto one model.
 
@@ -217,6 +218,8 @@ def register(
         The least error of another model (``recognize`` passes the best so far): the
         searches stop early once this model's best is far worse
         (``defaults.RIVAL_RATIO``), since it cannot win.
+    lookup_scale : float
+        Factor on the (K, H) lookup's tolerances (> 1 widens the window).
 
     Returns
     -------
@@ -226,13 +229,16 @@ def register(
     ------
     ValueError
         If ``method`` is unknown, ``max_candidates`` or ``searches`` is not a positive
-        integer, or the local geometry cannot be estimated from the curves.
+        integer, ``lookup_scale`` is not positive, or the local geometry cannot be
+        estimated from the curves.
     """
     if method not in SEARCH_METHODS:
         raise ValueError(f"method must be one of {SEARCH_METHODS}, got {method!r}")
     for name, value in (("max_candidates", max_candidates), ("searches", searches)):
         if not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    if not (np.isfinite(lookup_scale) and lookup_scale > 0):
+        raise ValueError(f"lookup_scale must be a positive number, got {lookup_scale!r}")
     t_start = time.perf_counter()
     if geometry is None:
         geometry = touch_geometry(touch)
@@ -245,7 +251,13 @@ def register(
     raw_hits = 0
     for side in _sides(geometry, touch, model):
         cand = find_candidates(
-            model, side.k1, side.k2, scale, side.fit_rms, max_candidates=max_candidates
+            model,
+            side.k1,
+            side.k2,
+            scale,
+            side.fit_rms,
+            max_candidates=max_candidates,
+            scale=lookup_scale,
         )
         raw_hits += cand.raw_hits
         local = (points - side.point) @ side.frame
