@@ -216,3 +216,24 @@ ROUGH_FIT_RATIO = 3.0
 #: ... and the fit residual is more than this fraction of the curves' half-length (so that
 #: near-noiseless data, whose two estimates are both rounding-level, never warn).
 ROUGH_FIT_MIN_FRACTION = 1e-3
+
+# --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
+#: Degrees of freedom of the pose search (a rigid motion), taken off in the fit test.
+POSE_DOF = 6
+#: Effective number of independent residuals per data point (the temperature of the
+#: likelihood): PLACEHOLDER, measured below.
+SCORE_ESS_FRACTION = 0.7
+#: Floor of the noise estimate, fraction of the curves' half-length (added in quadrature):
+#: the facets and the smoothing of the mesh leave some misfit even on noiseless data.
+SCORE_NOISE_FLOOR_FRACTION = 1e-3
+#: The plausible set holds the most probable models up to this total probability.
+VERDICT_COVERAGE = 0.95
+#: "unknown" when the best model's RMS residual exceeds this many times the noise ...
+UNKNOWN_FIT_RATIO = 2.0
+#: ... and its chi-square tail probability is below this.
+UNKNOWN_P_VALUE = 1e-3
+#: A second, widened lookup pass registers every model again when the best model's
+#: chi-square tail probability is below this ...
+WIDEN_P_VALUE = 0.01
+#: ... with the (K, H) lookup window this many times wider.
+LOOKUP_WIDEN_SCALE = 4.0

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -121,7 +122,9 @@ def _resolve_model_file(text: str) -> Path:
     raise ValueError(f"model_file {text}: no such file, nor a bundled model of that name")
 
 
-def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
+def recognition_to_json(
+    rec: Recognition, top: int | None = None, warnings: Sequence[str] = ()
+) -> dict:
     """The JSON document printed by ``meshrec recognize --json``.
 
     Parameters
@@ -129,14 +132,45 @@ def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
     rec : Recognition
     top : int, optional
         Keep only the ``top`` best models.
+    warnings : sequence of str
+        Warnings raised outside the recognition (reading the touch, loading the models),
+        listed before the recognition's own (duplicates dropped).
 
     Returns
     -------
     dict
+        Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``, ``warnings``,
+        ``touch`` and ``ranking`` (each entry with ``probability`` and ``poses``, a list
+        of ``{"transform": T_model_touch, "weight": w}``).
     """
     g = rec.geometry
     ranking = rec.ranking if top is None else rec.ranking[:top]
+    scores = {s.model: s for s in rec.scores}
+
+    def entry(r):
+        s = scores.get(r.model)
+        poses = [] if s is None else s.poses
+        return {
+            "model": r.model,
+            "file": r.path,
+            "error": r.error,
+            "probability": None if s is None else s.probability,
+            "rms": None if s is None else s.rms,
+            "contact": None if r.contact is None else r.contact.tolist(),
+            "transform": None if r.T_model_touch is None else r.T_model_touch.tolist(),
+            "poses": [{"transform": p.T_model_touch.tolist(), "weight": p.weight} for p in poses],
+            "candidates": r.candidates,
+            "seconds": r.seconds,
+            **({"reason": r.reason} if r.rejected else {}),
+        }
+
     return {
+        "verdict": rec.verdict,
+        "best": rec.best.model if rec.best is not None else None,
+        "plausible": list(rec.plausible),
+        "noise": float(rec.noise),
+        "reason": rec.reason,
+        "warnings": list(dict.fromkeys([*warnings, *rec.warnings])),
         "touch": {
             "file": rec.touch.source,
             "points": rec.touch.n_points,
@@ -146,19 +180,7 @@ def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
             "K": float(g.K),
             "H": float(g.H),
         },
-        "best": rec.best.model if rec.best is not None else None,
-        "ranking": [
-            {
-                "model": r.model,
-                "file": r.path,
-                "error": r.error,
-                "contact": None if r.contact is None else r.contact.tolist(),
-                "transform": None if r.T_model_touch is None else r.T_model_touch.tolist(),
-                "candidates": r.candidates,
-                "seconds": r.seconds,
-            }
-            for r in ranking
-        ],
+        "ranking": [entry(r) for r in ranking],
     }
 
 
@@ -167,21 +189,35 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
     out.write(
         f"touch: {rec.touch.n_points} points on {len(rec.touch.curves)} curves; "
         f"contact {np.array2string(g.point, precision=5)}, "
-        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}\n"
+        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}; noise {rec.noise:.3g}\n"
     )
     ranking = rec.ranking if top is None else rec.ranking[:top]
-    out.write(f"{'rank':>4}  {'model':<24} {'error/point':>12} {'cand.':>6} {'s':>6}  contact\n")
+    prob = rec.probabilities
+    out.write(
+        f"{'rank':>4}  {'model':<24} {'prob.':>6} {'error/point':>12} {'cand.':>6} {'s':>6}"
+        "  contact\n"
+    )
     for k, r in enumerate(ranking, start=1):
+        p = f"{prob[r.model]:.3f}" if r.model in prob else "-"
         if r.rejected:
-            out.write(f"{k:>4}  {r.model:<24} {'-':>12} {0:>6} {r.seconds:>6.2f}  {r.reason}\n")
+            out.write(
+                f"{k:>4}  {r.model:<24} {p:>6} {'-':>12} {0:>6} {r.seconds:>6.2f}  {r.reason}\n"
+            )
         else:
             c = np.array2string(r.contact, precision=5)
             out.write(
-                f"{k:>4}  {r.model:<24} {r.error:>12.4g} {r.candidates:>6} "
+                f"{k:>4}  {r.model:<24} {p:>6} {r.error:>12.4g} {r.candidates:>6} "
                 f"{r.seconds:>6.2f}  {c}\n"
             )
-    best = rec.best.model if rec.best is not None else "none (every model was rejected)"
-    out.write(f"recognised: {best}  ({rec.seconds:.2f} s)\n")
+    out.write(f"{rec.reason}\n")
+    if rec.verdict == "recognised":
+        what = rec.plausible[0]
+    elif rec.verdict == "ambiguous":
+        what = " or ".join(rec.plausible)
+    else:
+        best = rec.best.model if rec.best is not None else "none"
+        what = f"not in the library (best fit: {best})"
+    out.write(f"{rec.verdict}: {what}  ({rec.seconds:.2f} s)\n")
 
 
 def _library(args, progress=None) -> ModelLibrary:
@@ -197,14 +233,24 @@ def _run(args) -> int:
     if args.command == "recognize":
         if args.top is not None and args.top < 1:
             raise ValueError(f"--top must be at least 1, got {args.top}")
-        touch, geometry = _read_touch(args)
-        library = _library(args)
-        rec = recognize(touch, library, method=args.method, geometry=geometry)
+        # Every warning is printed as before and also kept for the JSON.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                touch, geometry = _read_touch(args)
+                library = _library(args)
+                rec = recognize(touch, library, method=args.method, geometry=geometry)
+            finally:
+                raised = list(caught)
+        for w in raised:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        texts = list(dict.fromkeys(str(w.message) for w in raised))
         if args.json:
-            sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
+            doc = recognition_to_json(rec, args.top, warnings=texts)
+            sys.stdout.write(json.dumps(doc) + "\n")
         else:
             _print_table(rec, args.top, sys.stdout)
-        return 0
+        return 1 if rec.verdict == "unknown" else 0
     if args.command == "index":
         library = _library(args, progress=_progress_printer(sys.stderr))
         if sys.stderr.isatty():
@@ -403,7 +449,9 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 on bad input (one line on stderr, no traceback).
+        0 on success (for recognize: recognised or ambiguous), 1 when recognize finds the
+        object unknown (its output is still printed), 2 on bad input (one line on stderr,
+        no traceback).
     """
     parser = _parser()
     argv = _join_vector_options(list(sys.argv[1:] if argv is None else argv))
