@@ -27,6 +27,7 @@ from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.library import ModelLibrary, bundled_models_dir
 from meshrec.model.mesh import load_mesh
 from meshrec.recognition.recognize import Recognition, recognize
+from meshrec.recognition.scoring import VERDICTS, ModelScore, PoseHypothesis, Verdict
 from meshrec.registration.candidates import curvature_tolerance
 from meshrec.registration.register import Registration, StageTimes, refine_pose, register
 from meshrec.sim.paper import PAPER_SURFACES, localisation_error, symmetry_rotations
@@ -34,17 +35,21 @@ from meshrec.sim.simulate import SimulatedTouch, simulate_touch
 
 __all__ = [
     "PAPER_SURFACES",
+    "VERDICTS",
     "CommonPoint",
     "IndexParams",
     "LocalGeometry",
     "ModelIndex",
     "ModelLibrary",
+    "ModelScore",
+    "PoseHypothesis",
     "Recognition",
     "Registration",
     "RoughFitWarning",
     "SimulatedTouch",
     "StageTimes",
     "TouchData",
+    "Verdict",
     "__version__",
     "bundled_models_dir",
     "curvature_tolerance",

@@ -410,8 +410,9 @@ def decide(
         return Verdict(
             "unknown",
             (),
-            "no model could be registered: the curvature lookup found no candidate contact "
-            "on any model, even with a widened window",
+            "no model could be registered (the curvature lookup found no candidate contact "
+            "on any model, even with a widened window): the object is probably not in the "
+            "library",
             float("inf"),
         )
     ratio = float(best_rms) / sigma
