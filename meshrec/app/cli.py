@@ -234,17 +234,20 @@ def _run(args) -> int:
         if args.top is not None and args.top < 1:
             raise ValueError(f"--top must be at least 1, got {args.top}")
         # Every warning is printed as before and also kept for the JSON.
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
+        caught: list = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
                 touch, geometry = _read_touch(args)
                 library = _library(args)
                 rec = recognize(touch, library, method=args.method, geometry=geometry)
-            finally:
-                raised = list(caught)
-        for w in raised:
-            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-        texts = list(dict.fromkeys(str(w.message) for w in raised))
+        finally:
+            shown = {}
+            for w in caught:  # each text once, as the default filter would
+                shown.setdefault(str(w.message), w)
+            for w in shown.values():
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        texts = list(shown)
         if args.json:
             doc = recognition_to_json(rec, args.top, warnings=texts)
             sys.stdout.write(json.dumps(doc) + "\n")

@@ -165,6 +165,12 @@ def recognize(
     Returns
     -------
     Recognition
+        The ranking (most probable first) with the calibrated scores and the verdict
+        (recognised, ambiguous or unknown; see :mod:`meshrec.recognition.scoring`). When
+        even the best fit is worse than the noise allows, every model is registered again
+        with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict.
+        Every warning raised inside is passed on as usual and its text kept in
+        ``Recognition.warnings``.
 
     Raises
     ------
@@ -175,17 +181,18 @@ def recognize(
     """
     t0 = time.perf_counter()
     models = list(library)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             rec = _rank(touch, models, method, progress, geometry)
             rec = _with_verdict(rec, models, method)
-        finally:
-            # Pass every warning on as before (the caller's filters decide what is
-            # shown), also when the recognition fails; the result keeps their text.
-            raised = list(caught)
-    for w in raised:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    finally:
+        # Pass every warning on as before (the caller's filters decide what is shown),
+        # also when the recognition fails; the result keeps their text.
+        raised = list(caught)
+        for w in raised:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
     return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
 
@@ -308,11 +315,7 @@ def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
     t_wide = 0.0
     best = rec.scores[0] if rec.scores else None
     cautions = []
-    if (
-        best is None
-        or best.rms is None
-        or fit_p_value(best.rms, n, noise) < defaults.WIDEN_P_VALUE
-    ):
+    if best is None or best.rms is None or fit_p_value(best.rms, n, noise) < defaults.WIDEN_P_VALUE:
         # Even the best fit is worse than the noise allows: look harder before
         # concluding. The lookup is a prior, not a gate: curves straddling a seam between
         # patches of different curvature may mismatch every vertex's (K, H) of the right
