@@ -355,6 +355,8 @@ def main(argv=None) -> int:
     ap.add_argument("--trials", type=int, default=1, help="multiplier of touches per group")
     ap.add_argument("--cache-dir", default=None)
     ap.add_argument("--from-raw", default=None, help="re-score recorded touches (no recognition)")
+    ap.add_argument("--measured-by", default=None,
+                    help="with --from-raw: the command that recorded the touches (for the header)")
     ap.add_argument("--raw", default=str(ROOT / "reports" / "calibration_raw.json"))
     ap.add_argument("--out", default=str(ROOT / "reports" / "calibration.md"))
     ap.add_argument("--plot", default=str(ROOT / "docs" / "images" / "reliability.png"))
@@ -371,6 +373,8 @@ def main(argv=None) -> int:
         Path(args.raw).parent.mkdir(parents=True, exist_ok=True)
         Path(args.raw).write_text(json.dumps(rows))
     command = "python tools/calibration.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if args.measured_by:
+        command = f"{args.measured_by}` (touches recorded), re-scored with `{command.strip()}"
     print(report(rows, command.strip(), Path(args.out), Path(args.plot)))
     return 0
 
