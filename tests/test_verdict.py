@@ -198,3 +198,17 @@ def test_a_misfit_far_above_the_noise_is_unknown(surfaces):
     assert rec.scores[0].rms > defaults.UNKNOWN_FIT_RATIO * rec.noise
     assert "times the noise" in rec.reason
     assert sum(s.probability for s in rec.scores) == pytest.approx(1.0)
+
+
+def test_a_touch_across_an_edge_carries_the_rough_fit_caution(tmp_path, cache):
+    box = trimesh.creation.box(extents=[2.0, 2.0, 2.0])
+    for _ in range(5):
+        box = box.subdivide()
+    box.export(tmp_path / "box.stl")
+    library = meshrec.ModelLibrary.from_folder(tmp_path, cache_dir=cache)
+    # 0.1 from the box's top edge: the curves, 0.6 long, run over it onto the side
+    sim = meshrec.simulate_touch(library["box"], rng=1, contact=[0.9, 0.0, 1.0], noise=1e-3)
+    with pytest.warns(meshrec.RoughFitWarning):
+        rec = meshrec.recognize(sim.touch, library)
+    assert any("fit no smooth surface patch" in w for w in rec.warnings)  # the warning
+    assert any("probabilities are less reliable" in w for w in rec.warnings)  # the caution

@@ -41,7 +41,8 @@ class Recognition:
     geometry : LocalGeometry
         The local geometry estimated at the contact (touch frame), shared by all models.
     ranking : tuple of Registration
-        Every model, least error first; models rejected by the table lookup last.
+        Every model, most probable first (then least error); models rejected by the table
+        lookup last.
     seconds : float
         Wall time of the whole recognition.
     verdict : str
@@ -273,17 +274,11 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
     )
 
 
-def _widened(rec: Recognition, models: dict, method: str, every: bool) -> Recognition:
-    """Register models again with the (K, H) window widened; keep each one's better fit.
-
-    Only the models the lookup rejected, or with ``every`` all of them.
-    """
+def _widened(rec: Recognition, models: dict, method: str) -> Recognition:
+    """Register every model again with the (K, H) window widened; keep each one's better fit."""
     g = rec.geometry
     merged = []
     for reg in rec.ranking:
-        if not (every or reg.rejected):
-            merged.append(reg)
-            continue
         wide = register(
             rec.touch,
             models[reg.model],
@@ -321,7 +316,7 @@ def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
         # patches of different curvature may mismatch every vertex's (K, H) of the right
         # model, so every model is registered again with the window widened.
         t1 = time.perf_counter()
-        rec = _widened(rec, by_name, method, every=True)
+        rec = _widened(rec, by_name, method)
         scores, noise = _score(rec, by_name)
         rec = _ordered(rec, scores)
         t_wide = time.perf_counter() - t1
@@ -334,14 +329,11 @@ def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
     probs = [s.probability for s in rec.scores]
     top = rec.scores[0] if rec.scores else None
     v = decide(names, probs, None if top is None else top.rms, int(rec.touch.n_points), noise)
-    rejected = [r.model for r in rec.ranking if r.rejected]
-    if rejected and v.verdict != "unknown":
-        cautions.append(
-            f"{len(rejected)} of {len(rec.ranking)} models had no candidate in the curvature "
-            "lookup and were given probability 0"
-        )
     g = rec.geometry
-    if g.fit_to_noise > defaults.ROUGH_FIT_RATIO:
+    if (
+        g.fit_to_noise > defaults.ROUGH_FIT_RATIO
+        and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
+    ):
         cautions.append(
             f"the curve fits leave {g.fit_to_noise:.3g} times the noise the samples show: "
             "the curves may cross an edge, and the probabilities are less reliable"

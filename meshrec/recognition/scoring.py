@@ -432,9 +432,8 @@ def decide(
         return Verdict(
             "recognised",
             plausible,
-            f"{plausible[0]} has probability {p[best]:.3f}, fitting to {ratio:.3g} times the "
-            "noise; every other model is less likely than "
-            f"{1.0 - defaults.VERDICT_COVERAGE:.2g} together",
+            f"{plausible[0]} has probability {p[best]:.3f} (the other models "
+            f"{max(1.0 - p[best], 0.0):.2g} together) and fits to {ratio:.3g} times the noise",
             ratio,
         )
     return Verdict(
