@@ -41,6 +41,10 @@ _WHERE = {
     "load_mesh": "meshrec.model.mesh",
     "Recognition": "meshrec.recognition.recognize",
     "recognize": "meshrec.recognition.recognize",
+    "ModelScore": "meshrec.recognition.scoring",
+    "VERDICTS": "meshrec.recognition.scoring",
+    "Verdict": "meshrec.recognition.scoring",
+    "WeightedPose": "meshrec.recognition.scoring",
     "PhiBrackets": "meshrec.registration.brackets",
     "phi_brackets": "meshrec.registration.brackets",
     "refine_phis": "meshrec.registration.brackets",
@@ -83,6 +87,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
     from meshrec.recognition.recognize import Recognition, recognize
+    from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
     from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
     from meshrec.registration.candidates import curvature_tolerance
     from meshrec.registration.lookup import ContactCandidates, lookup_candidates
@@ -102,12 +107,14 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
 
 __all__ = [
     "PAPER_SURFACES",
+    "VERDICTS",
     "CommonPoint",
     "ContactCandidates",
     "IndexParams",
     "LocalGeometry",
     "ModelIndex",
     "ModelLibrary",
+    "ModelScore",
     "PhiBrackets",
     "PoseHypothesis",
     "Recognition",
@@ -122,6 +129,8 @@ __all__ = [
     "StageTimes",
     "TouchData",
     "Truth",
+    "Verdict",
+    "WeightedPose",
     "__version__",
     "bundled_models_dir",
     "curvature_tolerance",

@@ -275,3 +275,40 @@ ROUGH_FIT_RATIO = 3.0
 #: ... and the fit residual is more than this fraction of the curves' half-length (so that
 #: near-noiseless data, whose two estimates are both rounding-level, never warn).
 ROUGH_FIT_MIN_FRACTION = 1e-3
+
+# --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
+#: Degrees of freedom of the pose search (a rigid motion), taken off in the fit test.
+POSE_DOF = 6
+#: Effective number of independent residuals per data point (the temperature of the
+#: likelihood). Fitted by tools/calibration.py on its training group only (shape set 1,
+#: nine generated shapes, curves 0.3 long, noise 0.002, 108 touches): mean -log p(truth)
+#: 0.420 at 0.2, 0.376 at 0.3, 0.355 at 0.4, 0.347 at 0.5, 0.352 at 0.7, 0.384 at 1.0.
+#: Below 1 because the residuals of a search-found pose on a mesh are not independent
+#: and the search's own imperfection adds to them. Held-out reliability:
+#: reports/calibration.md.
+SCORE_ESS_FRACTION = 0.5
+#: Floor of the noise estimate, fraction of the curves' half-length (added in quadrature):
+#: the facets and the smoothing of the mesh leave some misfit even on noiseless data
+#: (1.5e-4 on curves 0.3 long, an eighth of the issue's noise of 0.002 / sqrt(3)).
+SCORE_NOISE_FLOOR_FRACTION = 1e-3
+#: The plausible set holds the most probable models up to this total probability, so
+#: that the truth is inside at least 95% of the time when the probabilities are
+#: calibrated (measured: 99.3% on the issue's condition, held out).
+VERDICT_COVERAGE = 0.95
+#: "unknown" when the best model's RMS residual exceeds this many times the noise ...
+#: (in-library simulated touches: best RMS / noise at most 1.23 over 90 touches of
+#: the issue's condition, most between 0.92 and 1.11; shapes of clearly different
+#: curvature give 10 or more; real scans leave more misfit than simulations, hence 2,
+#: not 1.3)
+UNKNOWN_FIT_RATIO = 2.0
+#: ... and its chi-square tail probability (meshrec.recognition.scoring.fit_p_value) is
+#: below this.
+UNKNOWN_P_VALUE = 1e-3
+#: A second, widened lookup pass registers every model again when the best model's
+#: chi-square tail probability is below this (a fit worse than the noise allows: 18 of
+#: 494 calibration touches, 4.7% of the total time) ...
+WIDEN_P_VALUE = 0.01
+#: ... with the (K, H) lookup window this many times wider (a capsule whose trimesh mesh
+#: had no vertex on its cylinder, 42 of 60 touches rejected at 1x: 8 were found at 3x,
+#: every one at 4x).
+LOOKUP_WIDEN_SCALE = 4.0

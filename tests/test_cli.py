@@ -25,9 +25,14 @@ MATRIX = {
 #: The schema of ``meshrec recognize --json`` as the issue specifies it.
 SCHEMA = {
     "type": "object",
-    "required": ["touch", "best", "ranking"],
+    "required": ["verdict", "best", "plausible", "noise", "reason", "warnings", "touch", "ranking"],
     "additionalProperties": False,
     "properties": {
+        "verdict": {"enum": ["recognised", "ambiguous", "unknown"]},
+        "plausible": {"type": "array", "items": {"type": "string"}},
+        "noise": {"type": "number", "exclusiveMinimum": 0},
+        "reason": {"type": "string", "minLength": 1},
+        "warnings": {"type": "array", "items": {"type": "string"}},
         "touch": {
             "type": "object",
             "required": ["file", "points", "curves", "contact", "normal", "K", "H"],
@@ -55,6 +60,9 @@ SCHEMA = {
                     "transform",
                     "candidates",
                     "seconds",
+                    "probability",
+                    "rms",
+                    "poses",
                 ],
                 "additionalProperties": False,
                 "properties": {
@@ -65,6 +73,21 @@ SCHEMA = {
                     "transform": {"oneOf": [MATRIX, {"type": "null"}]},
                     "candidates": {"type": "integer", "minimum": 0},
                     "seconds": {"type": "number", "minimum": 0},
+                    "probability": {"type": ["number", "null"], "minimum": 0, "maximum": 1},
+                    "rms": {"type": ["number", "null"], "minimum": 0},
+                    "poses": {
+                        "type": "array",
+                        "items": {
+                            "type": "object",
+                            "required": ["transform", "weight"],
+                            "additionalProperties": False,
+                            "properties": {
+                                "transform": MATRIX,
+                                "weight": {"type": "number", "minimum": 0, "maximum": 1},
+                            },
+                        },
+                    },
+                    "reason": {"type": "string"},
                 },
             },
         },

@@ -1,7 +1,8 @@
 """The ``meshrec`` command line: parses arguments and calls the public API, nothing more.
 
-Exit status: 0 success, 2 bad input (one line on stderr), 130 interrupted (Ctrl-C), 141
-standard output closed by its reader (a broken pipe).
+Exit status: 0 success (for recognize: recognised or ambiguous), 1 recognize found the
+object unknown (its output is still printed), 2 bad input (one line on stderr), 130
+interrupted (Ctrl-C), 141 standard output closed by its reader (a broken pipe).
 
 Only the standard library is imported at module level, and ``meshrec/__init__`` imports
 its public names lazily: everything heavy (numpy, scipy, trimesh, libigl) is loaded inside
@@ -23,6 +24,8 @@ from meshrec._version import __version__
 from meshrec.app.commands_viz import add_viz_parsers
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from meshrec.recognition.recognize import Recognition
 
 __all__ = ["main", "recognition_to_json"]
@@ -146,7 +149,9 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
+def recognition_to_json(
+    rec: Recognition, top: int | None = None, warnings: Sequence[str] = ()
+) -> dict:
     """The JSON document printed by ``meshrec recognize --json``.
 
     Parameters
@@ -154,14 +159,45 @@ def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
     rec : Recognition
     top : int, optional
         Keep only the ``top`` best models.
+    warnings : sequence of str
+        Warnings raised outside the recognition (reading the touch, loading the models),
+        listed before the recognition's own (duplicates dropped).
 
     Returns
     -------
     dict
+        Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``, ``warnings``,
+        ``touch`` and ``ranking`` (each entry with ``probability`` and ``poses``, a list
+        of ``{"transform": T_model_touch, "weight": w}``).
     """
     g = rec.geometry
     ranking = rec.ranking if top is None else rec.ranking[:top]
+    scores = {s.model: s for s in rec.scores}
+
+    def entry(r):
+        s = scores.get(r.model)
+        poses = [] if s is None else s.poses
+        return {
+            "model": r.model,
+            "file": r.path,
+            "error": r.error,
+            "probability": None if s is None else s.probability,
+            "rms": None if s is None else s.rms,
+            "contact": None if r.contact is None else r.contact.tolist(),
+            "transform": None if r.T_model_touch is None else r.T_model_touch.tolist(),
+            "poses": [{"transform": p.T_model_touch.tolist(), "weight": p.weight} for p in poses],
+            "candidates": r.candidates,
+            "seconds": r.seconds,
+            **({"reason": r.reason} if r.rejected else {}),
+        }
+
     return {
+        "verdict": rec.verdict,
+        "best": rec.best.model if rec.best is not None else None,
+        "plausible": list(rec.plausible),
+        "noise": float(rec.noise),
+        "reason": rec.reason,
+        "warnings": list(dict.fromkeys([*warnings, *rec.warnings])),
         "touch": {
             "file": rec.touch.source,
             "points": rec.touch.n_points,
@@ -171,19 +207,7 @@ def recognition_to_json(rec: Recognition, top: int | None = None) -> dict:
             "K": float(g.K),
             "H": float(g.H),
         },
-        "best": rec.best.model if rec.best is not None else None,
-        "ranking": [
-            {
-                "model": r.model,
-                "file": r.path,
-                "error": r.error,
-                "contact": None if r.contact is None else r.contact.tolist(),
-                "transform": None if r.T_model_touch is None else r.T_model_touch.tolist(),
-                "candidates": r.candidates,
-                "seconds": r.seconds,
-            }
-            for r in ranking
-        ],
+        "ranking": [entry(r) for r in ranking],
     }
 
 
@@ -194,21 +218,35 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
     out.write(
         f"touch: {rec.touch.n_points} points on {len(rec.touch.curves)} curves; "
         f"contact {np.array2string(g.point, precision=5)}, "
-        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}\n"
+        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}; noise {rec.noise:.3g}\n"
     )
     ranking = rec.ranking if top is None else rec.ranking[:top]
-    out.write(f"{'rank':>4}  {'model':<24} {'error/point':>12} {'cand.':>6} {'s':>6}  contact\n")
+    prob = rec.probabilities
+    out.write(
+        f"{'rank':>4}  {'model':<24} {'prob.':>6} {'error/point':>12} {'cand.':>6} {'s':>6}"
+        "  contact\n"
+    )
     for k, r in enumerate(ranking, start=1):
+        p = f"{prob[r.model]:.3f}" if r.model in prob else "-"
         if r.rejected:
-            out.write(f"{k:>4}  {r.model:<24} {'-':>12} {0:>6} {r.seconds:>6.2f}  {r.reason}\n")
+            out.write(
+                f"{k:>4}  {r.model:<24} {p:>6} {'-':>12} {0:>6} {r.seconds:>6.2f}  {r.reason}\n"
+            )
         else:
             c = np.array2string(r.contact, precision=5)
             out.write(
-                f"{k:>4}  {r.model:<24} {r.error:>12.4g} {r.candidates:>6} "
+                f"{k:>4}  {r.model:<24} {p:>6} {r.error:>12.4g} {r.candidates:>6} "
                 f"{r.seconds:>6.2f}  {c}\n"
             )
-    best = rec.best.model if rec.best is not None else "none (every model was rejected)"
-    out.write(f"recognised: {best}  ({rec.seconds:.2f} s)\n")
+    out.write(f"{rec.reason}\n")
+    if rec.verdict == "recognised":
+        what = rec.plausible[0]
+    elif rec.verdict == "ambiguous":
+        what = " or ".join(rec.plausible)
+    else:
+        best = rec.best.model if rec.best is not None else "none"
+        what = f"not in the library (best fit: {best})"
+    out.write(f"{rec.verdict}: {what}  ({rec.seconds:.2f} s)\n")
 
 
 def _run_recognize(args) -> int:
@@ -230,14 +268,26 @@ def _run_recognize(args) -> int:
             "each of many files (JSON Lines)"
         )
     args.touch_file = names[0]
-    touch, geometry = inputs.touch_and_geometry(args, folder, units)
-    library = inputs.library(args, folder)
-    rec = recognize(touch, library, method=args.method, geometry=geometry)
+    # Every warning is printed as before and also kept for the JSON.
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            touch, geometry = inputs.touch_and_geometry(args, folder, units)
+            library = inputs.library(args, folder)
+            rec = recognize(touch, library, method=args.method, geometry=geometry)
+    finally:
+        shown = {}
+        for w in caught:  # each text once, as the default filter would
+            shown.setdefault(str(w.message), w)
+        for w in shown.values():
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     if args.json:
-        sys.stdout.write(json.dumps(recognition_to_json(rec, args.top)) + "\n")
+        doc = recognition_to_json(rec, args.top, warnings=list(shown))
+        sys.stdout.write(json.dumps(doc) + "\n")
     else:
         _print_table(rec, args.top, sys.stdout)
-    return 0
+    return 1 if rec.verdict == "unknown" else 0
 
 
 def _run_batch(args, names, folder, units) -> int:
@@ -333,7 +383,9 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 on bad input (one line on stderr, no traceback), 130 when
+        0 on success (for recognize: recognised or ambiguous), 1 when recognize finds
+        the object unknown (its output is still printed), 2 on bad input (one line on
+        stderr, no traceback), 130 when
         interrupted by Ctrl-C (SIGINT), at any moment: one line, no traceback; 141,
         silently, when standard output is a pipe closed by its reader.
     """

@@ -11,5 +11,17 @@ from meshrec.bench.protocols import (
     paper_touch,
     run_trials,
 )
+from meshrec.bench.shapes import SHAPE_FAMILIES, Shape, make_shape, shape_set, write_shapes
 
-__all__ = ["OBJECT_SIDES", "Trial", "object_localisation_error", "paper_touch", "run_trials"]
+__all__ = [
+    "OBJECT_SIDES",
+    "SHAPE_FAMILIES",
+    "Shape",
+    "Trial",
+    "make_shape",
+    "object_localisation_error",
+    "paper_touch",
+    "run_trials",
+    "shape_set",
+    "write_shapes",
+]

@@ -1,0 +1,217 @@
+"""The verdict on real recognitions: recognised, ambiguous, unknown; the CLI's keys and exits."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import meshrec
+from meshrec import defaults
+from meshrec.recognition import recognize as recognize_module
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+SCRIPT = Path(sys.executable).with_name("meshrec")
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(scope="module")
+def surfaces(cache):
+    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
+
+
+@pytest.fixture(scope="module")
+def small_sphere_touch():
+    """A touch on a sphere of radius 0.1: curvature 10, unlike every paper surface."""
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)
+    return meshrec.simulate_touch(sphere, length=0.2, noise=0.001, rng=5).touch
+
+
+def test_a_paper_touch_is_recognised_with_calibrated_fields(surfaces):
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    rec = meshrec.recognize(sim.touch, surfaces)
+    assert rec.verdict == "recognised"
+    assert rec.plausible == ("ellipsoid",)
+    assert rec.best.model == "ellipsoid"
+    assert "ellipsoid" in rec.reason
+    # the noise estimate: uniform noise of half-width 0.001 has deviation 0.001 / sqrt(3)
+    assert rec.noise == pytest.approx(1e-3 / math.sqrt(3.0), rel=0.2)
+    # one score per ranking entry, in ranking order, probabilities summing to 1
+    assert [s.model for s in rec.scores] == [r.model for r in rec.ranking]
+    assert sum(s.probability for s in rec.scores) == pytest.approx(1.0)
+    assert rec.probabilities["ellipsoid"] > 1.0 - defaults.VERDICT_COVERAGE
+    top = rec.scores[0]
+    assert sum(p.weight for p in top.poses) == pytest.approx(1.0)
+    np.testing.assert_array_equal(top.poses[0].T_model_touch, rec.best.T_model_touch)
+    # the rms is the RMS of the point-to-surface distances at that pose
+    pts = meshrec.registration.transform.apply_transform(rec.best.T_model_touch, sim.touch.points)
+    dist, _, _ = surfaces["ellipsoid"].closest_points(pts)
+    assert top.rms == pytest.approx(float(np.sqrt(np.mean(dist**2))), rel=0.05)
+    assert "verdict='recognised'" in repr(rec)
+    assert rec.scoring_seconds < 0.1 * rec.seconds
+
+
+def test_two_copies_of_a_model_are_ambiguous(tmp_path, cache):
+    folder = tmp_path / "twins"
+    folder.mkdir()
+    shutil.copy(MODELS / "surfaces" / "ellipsoid.stl", folder / "left.stl")
+    shutil.copy(MODELS / "surfaces" / "ellipsoid.stl", folder / "right.stl")
+    library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
+    sim = meshrec.simulate_touch(library["left"], rng=24)
+    rec = meshrec.recognize(sim.touch, library)
+    assert rec.verdict == "ambiguous"
+    assert set(rec.plausible) == {"left", "right"}
+    p = rec.probabilities
+    assert p["left"] == pytest.approx(p["right"], abs=0.1)
+
+
+def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(small_sphere_touch, surfaces)
+    assert rec.verdict == "unknown"
+    assert rec.plausible == ()
+    assert "not in the library" in rec.reason
+    # it looked harder (a widened lookup) before concluding
+    assert rec.widened_seconds > 0
+    assert any("widened" in w for w in rec.warnings)
+
+
+def test_warnings_raised_inside_are_kept_and_passed_on(surfaces, monkeypatch):
+    real = recognize_module.register
+
+    def noisy(*args, **kwargs):
+        warnings.warn("a test warning from register", UserWarning, stacklevel=2)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(recognize_module, "register", noisy)
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    with pytest.warns(UserWarning, match="a test warning from register"):
+        rec = meshrec.recognize(sim.touch, surfaces)
+    assert rec.warnings.count("a test warning from register") == 1
+
+
+def test_register_refuses_a_bad_lookup_scale(surfaces):
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    with pytest.raises(ValueError, match="lookup_scale"):
+        meshrec.register(sim.touch, surfaces["ellipsoid"], lookup_scale=0.0)
+
+
+def test_a_wider_lookup_finds_at_least_as_many_candidates(surfaces):
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    narrow = meshrec.register(sim.touch, surfaces["elliptic_paraboloid"], lookup_scale=0.25)
+    wide = meshrec.register(sim.touch, surfaces["elliptic_paraboloid"], lookup_scale=4.0)
+    assert wide.raw_hits >= narrow.raw_hits
+    assert wide.raw_hits > 0
+
+
+# ------------------------------------------------------------------ the console script
+def _run(args, env, cwd):
+    return subprocess.run(
+        [str(SCRIPT), *args], env=env, cwd=cwd, capture_output=True, text=True, timeout=600
+    )
+
+
+@pytest.fixture(scope="module")
+def env(cache):
+    return {**os.environ, "MESHREC_CACHE_DIR": str(cache)}
+
+
+def test_cli_unknown_exits_1_and_still_prints_the_json(tmp_path, env, small_sphere_touch):
+    small_sphere_touch.to_file(tmp_path / "touch.csv")
+    proc = _run(["recognize", "touch.csv", "--json"], env, tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["verdict"] == "unknown"
+    assert doc["plausible"] == []
+    assert "not in the library" in doc["reason"]
+    assert any("widened" in w for w in doc["warnings"])
+    assert doc["noise"] > 0
+    # no model had a candidate contact even in the widened lookup: none is probable
+    assert doc["best"] is None
+    assert all(e["probability"] == 0.0 for e in doc["ranking"])
+    assert all("reason" in e for e in doc["ranking"])
+    # the table says the same, with the same exit status
+    proc = _run(["recognize", "touch.csv"], env, tmp_path)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines()[-1].startswith("unknown: not in the library")
+
+
+def test_cli_recognised_shows_probabilities_and_exits_0(tmp_path, env, surfaces):
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    sim.touch.to_file(tmp_path / "touch.csv")
+    proc = _run(["recognize", "touch.csv"], env, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert "prob." in lines[1]
+    assert lines[2].split()[1:3] == ["ellipsoid", lines[2].split()[2]]
+    assert float(lines[2].split()[2]) > 1.0 - defaults.VERDICT_COVERAGE
+    assert lines[-1].startswith("recognised: ellipsoid")
+    proc = _run(["recognize", "touch.csv", "--json"], env, tmp_path)
+    doc = json.loads(proc.stdout)
+    assert (doc["verdict"], doc["plausible"], doc["best"]) == (
+        "recognised",
+        ["ellipsoid"],
+        "ellipsoid",
+    )
+    # the ellipsoid's symmetric twins are distinct poses of (nearly) equal weight; the
+    # reported transform is the first, best-fitting one
+    poses = doc["ranking"][0]["poses"]
+    assert sum(p["weight"] for p in poses) == pytest.approx(1.0)
+    assert poses[0]["transform"] == doc["ranking"][0]["transform"]
+    assert poses[0]["weight"] == pytest.approx(max(p["weight"] for p in poses))
+
+
+def test_cli_library_warnings_reach_the_json(tmp_path, env, surfaces):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    shutil.copy(MODELS / "surfaces" / "ellipsoid.stl", folder / "ellipsoid.stl")
+    (folder / "broken.stl").write_text("not a mesh")
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
+    sim.touch.to_file(tmp_path / "touch.csv")
+    proc = _run(["recognize", "touch.csv", "--json", "--models", str(folder)], env, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert any("broken" in w for w in doc["warnings"]), doc["warnings"]
+    assert "broken" in proc.stderr  # and still printed as before
+
+
+def test_a_misfit_far_above_the_noise_is_unknown(surfaces):
+    # a sphere of radius 0.2: candidates exist on the ellipsoid, but no pose fits
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.2)
+    touch = meshrec.simulate_touch(sphere, length=0.3, noise=0.001, rng=5).touch
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touch, surfaces)
+    assert rec.verdict == "unknown"
+    assert rec.best is not None
+    assert rec.scores[0].rms > defaults.UNKNOWN_FIT_RATIO * rec.noise
+    assert "times the noise" in rec.reason
+    assert sum(s.probability for s in rec.scores) == pytest.approx(1.0)
+
+
+def test_a_touch_across_an_edge_carries_the_rough_fit_caution(tmp_path, cache):
+    box = trimesh.creation.box(extents=[2.0, 2.0, 2.0])
+    for _ in range(5):
+        box = box.subdivide()
+    box.export(tmp_path / "box.stl")
+    library = meshrec.ModelLibrary.from_folder(tmp_path, cache_dir=cache)
+    # 0.1 from the box's top edge: the curves, 0.6 long, run over it onto the side
+    sim = meshrec.simulate_touch(library["box"], rng=1, contact=[0.9, 0.0, 1.0], noise=1e-3)
+    with pytest.warns(meshrec.RoughFitWarning):
+        rec = meshrec.recognize(sim.touch, library)
+    assert any("fit no smooth surface patch" in w for w in rec.warnings)  # the warning
+    assert any("probabilities are less reliable" in w for w in rec.warnings)  # the caution
