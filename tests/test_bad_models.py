@@ -254,10 +254,10 @@ def _index(tmp_path, mesh_or_text, name, suffix=".ply") -> ModelIndex:
 
 def _radius_1_curvature_ok(idx: ModelIndex, mask=None, rtol=0.03) -> None:
     """On a unit sphere with outward normals, H = 1 and K = 1."""
-    mask = np.ones(len(idx.vertices), bool) if mask is None else mask
-    assert idx.valid[mask].all()
-    assert np.allclose(idx.H[mask], 1.0, rtol=rtol)
-    assert np.allclose(idx.K[mask], 1.0, rtol=2 * rtol)
+    mask = np.ones(len(idx.mesh.vertices), bool) if mask is None else mask
+    assert idx.curvature.valid[mask].all()
+    assert np.allclose(idx.curvature.H[mask], 1.0, rtol=rtol)
+    assert np.allclose(idx.curvature.K[mask], 1.0, rtol=2 * rtol)
 
 
 def test_degenerate_duplicate_faces_and_unreferenced_vertices(tmp_path):
@@ -277,10 +277,10 @@ def test_degenerate_duplicate_faces_and_unreferenced_vertices(tmp_path):
     dirty = trimesh.Trimesh(V, F, process=False)
     idx = _index(tmp_path, dirty, "dirty")
     ref = _index(tmp_path, clean, "clean")
-    assert len(idx.vertices) == len(clean.vertices)
-    assert len(idx.faces) == len(clean.faces)
-    assert idx.closed
-    np.testing.assert_allclose(np.sort(idx.H), np.sort(ref.H), rtol=1e-9)
+    assert len(idx.mesh.vertices) == len(clean.vertices)
+    assert len(idx.mesh.faces) == len(clean.faces)
+    assert idx.mesh.closed
+    np.testing.assert_allclose(np.sort(idx.curvature.H), np.sort(ref.curvature.H), rtol=1e-9)
     _radius_1_curvature_ok(idx)
 
 
@@ -288,12 +288,12 @@ def test_several_components(tmp_path):
     small = _sphere(radius=0.5)
     small.apply_translation([3.0, 0.0, 0.0])
     idx = _index(tmp_path, trimesh.util.concatenate([_sphere(), small]), "two")
-    big = idx.vertices[:, 0] < 1.5
-    assert idx.closed
+    big = idx.mesh.vertices[:, 0] < 1.5
+    assert idx.mesh.closed
     _radius_1_curvature_ok(idx, big)
     # radius 0.5; measured 2.070-2.079: the curvature ball (a fraction of the whole model's
     # size) spans twice the angle on the small sphere, and the quadric fit is biased by it
-    assert np.allclose(idx.H[~big], 2.0, rtol=0.05)
+    assert np.allclose(idx.curvature.H[~big], 2.0, rtol=0.05)
 
 
 def test_open_boundary(tmp_path):
@@ -301,8 +301,8 @@ def test_open_boundary(tmp_path):
     keep = sphere.triangles_center[:, 2] > 0.0
     cap = trimesh.Trimesh(sphere.vertices, sphere.faces[keep])
     idx = _index(tmp_path, cap, "cap")
-    assert not idx.closed
-    inner = idx.vertices[:, 2] > 0.3  # away from the rim, where the ball is one-sided
+    assert not idx.mesh.closed
+    inner = idx.mesh.vertices[:, 2] > 0.3  # away from the rim, where the ball is one-sided
     _radius_1_curvature_ok(idx, inner)
     assert np.isfinite(idx.curvature._kdtree.data).all()
 
@@ -314,12 +314,12 @@ def test_non_manifold_edge(tmp_path):
     fin_f = [[n, n + 1, n + 2], [n, n + 1, n + 3], [n + 1, n, n + 4]]  # edge (n, n+1) x3
     mesh = trimesh.Trimesh(np.vstack([sphere.vertices, fin_v]), np.vstack([sphere.faces, fin_f]))
     idx = _index(tmp_path, mesh, "fin")
-    on_sphere = np.linalg.norm(idx.vertices, axis=1) < 1.5
+    on_sphere = np.linalg.norm(idx.mesh.vertices, axis=1) < 1.5
     assert on_sphere.sum() == n
     _radius_1_curvature_ok(idx, on_sphere)
-    assert not idx.closed
-    table = idx.lookup(0.0, 0.0, np.inf, np.inf)
-    assert np.isfinite(idx.K[table]).all()
+    assert not idx.mesh.closed
+    table = idx.curvature.lookup(0.0, 0.0, np.inf, np.inf)
+    assert np.isfinite(idx.curvature.K[table]).all()
 
 
 def test_inside_out_closed_mesh_is_turned_outward(tmp_path):
@@ -327,7 +327,7 @@ def test_inside_out_closed_mesh_is_turned_outward(tmp_path):
     sphere.invert()
     assert sphere.volume < 0
     idx = _index(tmp_path, sphere, "inside_out", suffix=".stl")
-    outward = np.einsum("ij,ij->i", idx.vertex_normals, idx.vertices)
+    outward = np.einsum("ij,ij->i", idx.mesh.vertex_normals, idx.mesh.vertices)
     assert (outward > 0.99).all()
     _radius_1_curvature_ok(idx)
 
@@ -342,10 +342,10 @@ def test_randomly_flipped_faces_are_made_consistent(tmp_path, closed):
     mesh = trimesh.Trimesh(sphere.vertices, faces, process=False)
     assert not mesh.is_winding_consistent
     idx = _index(tmp_path, mesh, f"flipped_{closed}")
-    inner = idx.vertices[:, 2] > 0.1 if not closed else np.ones(len(idx.vertices), bool)
-    sign = 1.0 if closed else np.sign(np.median(idx.H[inner]))  # an open one keeps a side
-    assert np.allclose(sign * idx.H[inner], 1.0, rtol=0.03)
-    assert trimesh.Trimesh(idx.vertices, idx.faces, process=False).is_winding_consistent
+    inner = idx.mesh.vertices[:, 2] > 0.1 if not closed else np.ones(len(idx.mesh.vertices), bool)
+    sign = 1.0 if closed else np.sign(np.median(idx.curvature.H[inner]))  # an open one keeps a side
+    assert np.allclose(sign * idx.curvature.H[inner], 1.0, rtol=0.03)
+    assert trimesh.Trimesh(idx.mesh.vertices, idx.mesh.faces, process=False).is_winding_consistent
 
 
 @pytest.mark.parametrize("scale", [1e-12, 1e12])
@@ -354,8 +354,8 @@ def test_any_unit_size(tmp_path, scale):
     sphere = _sphere()
     sphere.apply_scale(scale)
     idx = _index(tmp_path, sphere, "scaled")
-    assert len(idx.vertices) == len(sphere.vertices)
-    assert np.allclose(idx.H, 1.0 / scale, rtol=0.03)
+    assert len(idx.mesh.vertices) == len(sphere.vertices)
+    assert np.allclose(idx.curvature.H, 1.0 / scale, rtol=0.03)
 
 
 def test_libigl_failures_do_not_poison_the_table(tmp_path):
@@ -370,9 +370,9 @@ def test_libigl_failures_do_not_poison_the_table(tmp_path):
     _export(trimesh.util.concatenate([_sphere(), island]), folder / "ball.ply")
     with pytest.warns(LibraryWarning, match=r"'tet'.*no vertex has a usable curvature"):
         lib = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
-    assert not lib["tet"].valid.any()
+    assert not lib["tet"].curvature.valid.any()
     ball = lib["ball"]
-    assert (~ball.valid).sum() == 3
+    assert (~ball.curvature.valid).sum() == 3
     assert np.isfinite(ball.curvature._kdtree.data).all()
     rec = recognize(simulate_touch(_sphere(), rng=2).touch, lib)
     assert rec.best.model == "ball"

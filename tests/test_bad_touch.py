@@ -442,7 +442,7 @@ def test_the_limits_are_the_defaults(setup):
         recognize(bad, setup.library)
     # a touch as large as the model (UNIT_MAX_TOUCH_DIAGONALS / 2) is accepted, not a unit error
     size = float(np.linalg.norm(np.ptp(sim.touch.points, axis=0)))
-    diagonal = float(np.linalg.norm(np.ptp(setup.library["ball"].vertices, axis=0)))
+    diagonal = float(np.linalg.norm(np.ptp(setup.library["ball"].mesh.vertices, axis=0)))
     assert 0.1 < size / diagonal < 1.0  # a simulated touch is a fraction of the model's size
     factor = 0.5 * defaults.UNIT_MAX_TOUCH_DIAGONALS * diagonal / size
     big = TouchData(curves=[c * factor for c in sim.touch.curves])

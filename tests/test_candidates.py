@@ -42,14 +42,16 @@ def _brute(model, K, H, tol_K, tol_H):
     """Every valid vertex of the table within the box: a scan of all of them."""
     keep = [
         v
-        for v in range(len(model.vertices))
-        if model.valid[v] and abs(model.K[v] - K) <= tol_K and abs(model.H[v] - H) <= tol_H
+        for v in range(len(model.mesh.vertices))
+        if model.curvature.valid[v]
+        and abs(model.curvature.K[v] - K) <= tol_K
+        and abs(model.curvature.H[v] - H) <= tol_H
     ]
     return np.array(keep, dtype=np.int64)
 
 
 def _check_spread(model, cand, spacing, limit):
-    chosen = model.vertices[cand.vertices]
+    chosen = model.mesh.vertices[cand.vertices]
     assert len(cand.vertices) <= limit
     assert len(np.unique(cand.vertices)) == len(cand.vertices)
     d = np.linalg.norm(chosen[:, None] - chosen[None], axis=2) + np.eye(len(chosen)) * 1e9
@@ -62,8 +64,8 @@ def test_sphere_every_valid_vertex_matches(meshes):
     k = 1.0 / RADIUS
     cand = find_candidates(model, k, k, HALF_LENGTH, FIT_RMS)
     assert isinstance(cand, CandidateSet)
-    assert model.valid.sum() == len(model.vertices)  # a clean closed mesh: all valid
-    assert cand.raw_hits == len(model.vertices)
+    assert model.curvature.valid.sum() == len(model.mesh.vertices)  # a clean closed mesh: all valid
+    assert cand.raw_hits == len(model.mesh.vertices)
     # 64 candidates at least a quarter of the half-length apart (the sphere has room).
     assert len(cand.vertices) == defaults.MAX_CANDIDATES
     _check_spread(model, cand, defaults.CANDIDATE_SPACING_FRACTION * HALF_LENGTH, 64)
@@ -90,7 +92,9 @@ def test_max_candidates_and_the_first_candidate(meshes):
     assert len(cand.vertices) == 5
     # The first is the hit closest to (K, H) in units of the tolerances: brute force.
     K, H = k * k, k
-    mismatch = np.abs(model.K - K) / cand.tol_K + np.abs(model.H - H) / cand.tol_H
+    mismatch = (
+        np.abs(model.curvature.K - K) / cand.tol_K + np.abs(model.curvature.H - H) / cand.tol_H
+    )
     assert cand.vertices[0] == np.argmin(mismatch)
     assert len(find_candidates(model, k, k, HALF_LENGTH, FIT_RMS, max_candidates=0).vertices) == 0
 
@@ -103,7 +107,7 @@ def test_cylinder_side_matches_k_zero_h_half_over_r(meshes):
     assert cand.raw_hits == len(hits)
     assert np.isin(cand.vertices, hits).all()
     # Every side vertex away from the open ends (where the curvature ball is cut) matches.
-    z = model.vertices[:, 2]
+    z = model.mesh.vertices[:, 2]
     middle = np.flatnonzero(np.abs(z) < 2.0)
     assert np.isin(middle, hits).all()
     _check_spread(model, cand, defaults.CANDIDATE_SPACING_FRACTION * HALF_LENGTH, 64)
@@ -124,9 +128,9 @@ def test_cylinder_side_matches_k_zero_h_half_over_r(meshes):
 def test_lookup_matches_a_brute_force_scan(meshes, vertex, dK, dH, tol_K, tol_H):
     # Boxes around the cylinder's table entries (whose K and H spread near the open ends).
     model = meshes.can
-    v = vertex % len(model.vertices)
-    K, H = float(model.K[v]) + dK, float(model.H[v]) + dH
-    got = model.lookup(K, H, tol_K, tol_H)
+    v = vertex % len(model.mesh.vertices)
+    K, H = float(model.curvature.K[v]) + dK, float(model.curvature.H[v]) + dH
+    got = model.curvature.lookup(K, H, tol_K, tol_H)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, _brute(model, K, H, tol_K, tol_H))
 

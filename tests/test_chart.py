@@ -43,7 +43,9 @@ def ball(tmp_path_factory):
     )
     # The interpolated normal blends the vertex normals, each this far from the analytic
     # normal at its vertex (libigl's weighting at the icosphere's valence-5 vertices: 3e-3).
-    ns.normal_tol = 1e-4 + _angles(ns.model.vertex_normals, _radial(ns.model.vertices)).max()
+    ns.normal_tol = (
+        1e-4 + _angles(ns.model.mesh.vertex_normals, _radial(ns.model.mesh.vertices)).max()
+    )
     return ns
 
 
@@ -56,16 +58,19 @@ def can(tmp_path_factory):
         chord=deepest_chord(mesh, centre=None, radius=RADIUS),
         tilt=steepest_tilt(mesh, axis=True),
     )
-    side = np.abs(ns.model.vertices[:, 2]) < 1.9  # the rims' normals lean over the ends
-    ns.normal_tol = 1e-4 + _angles(
-        ns.model.vertex_normals[side], _radial(ns.model.vertices[side], axis=True)
-    ).max()
+    side = np.abs(ns.model.mesh.vertices[:, 2]) < 1.9  # the rims' normals lean over the ends
+    ns.normal_tol = (
+        1e-4
+        + _angles(
+            ns.model.mesh.vertex_normals[side], _radial(ns.model.mesh.vertices[side], axis=True)
+        ).max()
+    )
     return ns
 
 
 def _closest_on_mesh(model, x):
     """Brute-force twin of the AABB query: trimesh's closest point on every face, the nearest."""
-    triangles = model.vertices[model.faces]
+    triangles = model.mesh.vertices[model.mesh.faces]
     on_faces = trimesh.triangles.closest_point(triangles, np.tile(x, (len(triangles), 1)))
     return on_faces[np.argmin(np.linalg.norm(on_faces - x, axis=1))]
 

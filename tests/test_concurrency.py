@@ -175,7 +175,9 @@ def test_a_changed_mesh_or_parameter_is_rebuilt(tmp_path):
     trimesh.creation.icosphere(subdivisions=4).export(models / "ball.stl")  # new content
     lib = ModelLibrary.from_folder(models, cache_dir=cache)
     assert {m.name: m.from_cache for m in lib} == {"ball": False, "can": True, "pill": True}
-    assert len(lib["ball"].vertices) == len(trimesh.creation.icosphere(subdivisions=4).vertices)
+    assert len(lib["ball"].mesh.vertices) == len(
+        trimesh.creation.icosphere(subdivisions=4).vertices
+    )
     other = ModelLibrary.from_folder(models, params=IndexParams(min_radius=3), cache_dir=cache)
     assert not any(m.from_cache for m in other)
     assert len(list(cache.iterdir())) == 3 + 1 + 3  # every version kept side by side

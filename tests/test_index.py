@@ -129,22 +129,24 @@ def test_radius_edges_errors(scale, edge, name):
 def test_sphere_curvature_and_sign(sphere_index):
     idx = sphere_index
     r = 2.0
-    assert idx.valid.all()
-    assert idx.closed
-    assert np.all(idx.k1 >= idx.k2)
+    assert idx.curvature.valid.all()
+    assert idx.mesh.closed
+    assert np.all(idx.curvature.k1 >= idx.curvature.k2)
     # Measured: relative errors <= 1.0e-2 (K) and 4.8e-3 (H) on this 5120-face sphere.
-    assert np.allclose(idx.K, 1 / r**2, rtol=0.015)
-    assert np.allclose(idx.H, 1 / r, rtol=0.008)
-    assert np.all(idx.k2 > 0)  # outward normals: positive curvature (libigl's sign)
-    radial = idx.vertices / np.linalg.norm(idx.vertices, axis=1, keepdims=True)
-    assert np.all(np.einsum("ij,ij->i", idx.vertex_normals, radial) > 0.999)
-    assert np.isclose(idx.scale, np.sqrt(4 * np.pi * r**2), rtol=0.01)
-    assert np.isclose(idx.curvature_radius, idx.radius_edges * idx.avg_edge)
+    assert np.allclose(idx.curvature.K, 1 / r**2, rtol=0.015)
+    assert np.allclose(idx.curvature.H, 1 / r, rtol=0.008)
+    assert np.all(idx.curvature.k2 > 0)  # outward normals: positive curvature (libigl's sign)
+    radial = idx.mesh.vertices / np.linalg.norm(idx.mesh.vertices, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", idx.mesh.vertex_normals, radial) > 0.999)
+    assert np.isclose(idx.mesh.scale, np.sqrt(4 * np.pi * r**2), rtol=0.01)
+    assert np.isclose(
+        idx.curvature.curvature_radius, idx.curvature.radius_edges * idx.mesh.avg_edge
+    )
     # directions: unit, tangent, orthogonal
-    for d in (idx.dir1, idx.dir2):
+    for d in (idx.curvature.dir1, idx.curvature.dir2):
         assert np.allclose(np.linalg.norm(d, axis=1), 1.0)
-        assert np.abs(np.einsum("ij,ij->i", d, idx.vertex_normals)).max() < 1e-6
-    assert np.abs(np.einsum("ij,ij->i", idx.dir1, idx.dir2)).max() < 1e-6
+        assert np.abs(np.einsum("ij,ij->i", d, idx.mesh.vertex_normals)).max() < 1e-6
+    assert np.abs(np.einsum("ij,ij->i", idx.curvature.dir1, idx.curvature.dir2)).max() < 1e-6
 
 
 def test_flipped_winding_flips_the_sign():
@@ -167,32 +169,32 @@ def test_cylinder_side_curvature(tmp_path):
     assert mesh.is_watertight
     assert mesh.volume > 0
     idx = _index(tmp_path, mesh, "cylinder")
-    assert idx.closed
-    radius = np.hypot(idx.vertices[:, 0], idx.vertices[:, 1])
-    side = (np.abs(idx.vertices[:, 2]) < 1.5) & np.isclose(radius, r)
+    assert idx.mesh.closed
+    radius = np.hypot(idx.mesh.vertices[:, 0], idx.mesh.vertices[:, 1])
+    side = (np.abs(idx.mesh.vertices[:, 2]) < 1.5) & np.isclose(radius, r)
     assert side.sum() > 5000
     # Measured: |K| <= 1.6e-4 and |H - 1/(2r)| / (1/(2r)) <= 2.0e-3 away from the rims.
-    assert np.abs(idx.K[side]).max() < 1e-3
-    assert np.allclose(idx.H[side], 1 / (2 * r), rtol=5e-3)
-    assert np.allclose(idx.k1[side], 1 / r, rtol=5e-3)
+    assert np.abs(idx.curvature.K[side]).max() < 1e-3
+    assert np.allclose(idx.curvature.H[side], 1 / (2 * r), rtol=5e-3)
+    assert np.allclose(idx.curvature.k1[side], 1 / r, rtol=5e-3)
     # the maximal direction goes round the cylinder, the minimal one along its axis
-    assert np.abs(idx.dir2[side, 2]).min() > 0.999
+    assert np.abs(idx.curvature.dir2[side, 2]).min() > 0.999
 
 
 def test_ellipsoid_curvature_against_closed_form(ellipsoid_index):
     idx = ellipsoid_index
     a, b, c = 1.0, 0.8, 0.5
-    K, H = _ellipsoid_KH(idx.vertices, a, b, c)
+    K, H = _ellipsoid_KH(idx.mesh.vertices, a, b, c)
     # The vertices nearest a few directions (the axis ends and general points).
     dirs = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [1, -2, 0.5], [0.3, 0.2, -1.0]])
-    unit = idx.vertices / [a, b, c]
+    unit = idx.mesh.vertices / [a, b, c]
     picks = np.argmax(unit @ (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).T, axis=0)
     # Measured at these points: relative error <= 3.4e-3 (K) and 3.1e-3 (H).
-    assert np.allclose(idx.K[picks], K[picks], rtol=0.01)
-    assert np.allclose(idx.H[picks], H[picks], rtol=0.01)
+    assert np.allclose(idx.curvature.K[picks], K[picks], rtol=0.01)
+    assert np.allclose(idx.curvature.H[picks], H[picks], rtol=0.01)
     # Everywhere (incl. the irregular valence-5 vertices): measured 2.2e-2 (K), 1.6e-2 (H).
-    assert np.max(np.abs(idx.K / K - 1)) < 0.03
-    assert np.max(np.abs(idx.H / H - 1)) < 0.02
+    assert np.max(np.abs(idx.curvature.K / K - 1)) < 0.03
+    assert np.max(np.abs(idx.curvature.H / H - 1)) < 0.02
 
 
 def test_bad_vertices_stay_out_of_the_table(tmp_path):
@@ -200,17 +202,17 @@ def test_bad_vertices_stay_out_of_the_table(tmp_path):
     far = trimesh.Trimesh([[10, 0, 0], [11, 0, 0], [10, 1, 0]], [[0, 1, 2]])
     mesh = trimesh.util.concatenate([sphere, far])
     idx = _index(tmp_path, mesh, "with_island", suffix=".ply")
-    island = np.linalg.norm(idx.vertices, axis=1) > 5
+    island = np.linalg.norm(idx.mesh.vertices, axis=1) > 5
     assert island.sum() == 3
-    assert not idx.valid[island].any()
-    assert idx.valid[~island].all()
-    assert np.isnan(idx.K[island]).all()
-    assert not idx.closed
+    assert not idx.curvature.valid[island].any()
+    assert idx.curvature.valid[~island].all()
+    assert np.isnan(idx.curvature.K[island]).all()
+    assert not idx.mesh.closed
     table = idx.curvature._kdtree.data
     assert np.isfinite(table).all()
-    assert len(table) == idx.valid.sum()
-    everything = idx.lookup(0.0, 0.0, np.inf, np.inf)
-    assert np.array_equal(everything, np.flatnonzero(idx.valid))
+    assert len(table) == idx.curvature.valid.sum()
+    everything = idx.curvature.lookup(0.0, 0.0, np.inf, np.inf)
+    assert np.array_equal(everything, np.flatnonzero(idx.curvature.valid))
 
 
 def test_dangling_vertex_does_not_crash_libigl():
@@ -230,7 +232,11 @@ def test_dangling_vertex_does_not_crash_libigl():
 
 # ----------------------------------------------------------------------------- lookup
 def _brute(idx, K, H, tol_K, tol_H):
-    ok = idx.valid & (np.abs(idx.K - K) <= tol_K) & (np.abs(idx.H - H) <= tol_H)
+    ok = (
+        idx.curvature.valid
+        & (np.abs(idx.curvature.K - K) <= tol_K)
+        & (np.abs(idx.curvature.H - H) <= tol_H)
+    )
     return np.flatnonzero(ok)
 
 
@@ -238,30 +244,34 @@ def test_lookup_matches_brute_force(ellipsoid_index):
     idx = ellipsoid_index
     rng = np.random.default_rng(7)
     for _ in range(200):
-        v = rng.integers(len(idx.vertices))
-        K = idx.K[v] * rng.uniform(0.9, 1.1)
-        H = idx.H[v] * rng.uniform(0.9, 1.1)
+        v = rng.integers(len(idx.mesh.vertices))
+        K = idx.curvature.K[v] * rng.uniform(0.9, 1.1)
+        H = idx.curvature.H[v] * rng.uniform(0.9, 1.1)
         tol_K = abs(K) * rng.uniform(0.0, 0.3)
         tol_H = abs(H) * rng.uniform(0.0, 0.3)
-        got = idx.lookup(K, H, tol_K, tol_H)
+        got = idx.curvature.lookup(K, H, tol_K, tol_H)
         assert got.dtype == np.int64
         assert np.array_equal(got, _brute(idx, K, H, tol_K, tol_H))
     # boundary and degenerate boxes: exact values with zero tolerance, one axis free
     v = 123
-    assert v in idx.lookup(idx.K[v], idx.H[v], 0.0, 0.0)
-    exact = _brute(idx, idx.K[v], idx.H[v], 0.0, 0.0)
-    assert np.array_equal(idx.lookup(idx.K[v], idx.H[v], 0.0, 0.0), exact)
+    assert v in idx.curvature.lookup(idx.curvature.K[v], idx.curvature.H[v], 0.0, 0.0)
+    exact = _brute(idx, idx.curvature.K[v], idx.curvature.H[v], 0.0, 0.0)
+    assert np.array_equal(
+        idx.curvature.lookup(idx.curvature.K[v], idx.curvature.H[v], 0.0, 0.0), exact
+    )
     for tk, th in [(np.inf, 0.05), (0.1, np.inf)]:
-        assert np.array_equal(idx.lookup(2.0, 1.5, tk, th), _brute(idx, 2.0, 1.5, tk, th))
-    assert len(idx.lookup(-5.0, -3.0, 0.1, 0.1)) == 0
+        assert np.array_equal(idx.curvature.lookup(2.0, 1.5, tk, th), _brute(idx, 2.0, 1.5, tk, th))
+    assert len(idx.curvature.lookup(-5.0, -3.0, 0.1, 0.1)) == 0
 
 
 def test_lookup_on_a_flat_model(tmp_path):
     # median |H| is 0 on a box: the K axis falls back to 1 / scale.
     idx = _index(tmp_path, trimesh.creation.box().subdivide().subdivide(), "box")
     assert np.isclose(idx.curvature.kh_scale, idx.mesh.scale / 2)
-    assert np.array_equal(idx.lookup(0.0, 0.0, 1e-9, 1e-9), _brute(idx, 0.0, 0.0, 1e-9, 1e-9))
-    assert len(idx.lookup(0.0, 0.0, 1e-9, 1e-9)) > 0
+    assert np.array_equal(
+        idx.curvature.lookup(0.0, 0.0, 1e-9, 1e-9), _brute(idx, 0.0, 0.0, 1e-9, 1e-9)
+    )
+    assert len(idx.curvature.lookup(0.0, 0.0, 1e-9, 1e-9)) > 0
 
 
 @pytest.mark.parametrize(
@@ -277,7 +287,7 @@ def test_lookup_on_a_flat_model(tmp_path):
 )
 def test_lookup_errors(sphere_index, args, match):
     with pytest.raises(ValueError, match=match):
-        sphere_index.lookup(*args)
+        sphere_index.curvature.lookup(*args)
 
 
 # ----------------------------------------------------------------------------- distances
@@ -285,14 +295,14 @@ def test_closest_points_on_a_cube_exact(tmp_path):
     idx = _index(tmp_path, trimesh.creation.box(extents=(2, 2, 2)), "cube")
     rng = np.random.default_rng(3)
     P = rng.uniform(-3, 3, size=(500, 3))
-    dist, closest, face = idx.closest_points(P)
+    dist, closest, face = idx.surface.closest_points(P)
     q = np.abs(P) - 1.0
     outside = np.linalg.norm(np.maximum(q, 0), axis=1)
     inside = -np.minimum(q.max(axis=1), 0)
     assert np.allclose(dist, outside + inside, atol=1e-12)
     assert np.allclose(np.linalg.norm(P - closest, axis=1), dist)
     assert face.dtype == np.int64
-    assert np.all((face >= 0) & (face < len(idx.faces)))
+    assert np.all((face >= 0) & (face < len(idx.mesh.faces)))
 
 
 def test_closest_points_near_a_sphere(sphere_index):
@@ -302,9 +312,9 @@ def test_closest_points_near_a_sphere(sphere_index):
     dirs = rng.normal(size=(400, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     P = dirs * rng.uniform(0.5 * r, 1.5 * r, size=(400, 1))
-    dist, closest, face = idx.closest_points(P)
+    dist, closest, face = idx.surface.closest_points(P)
     # The mesh lies between the sphere and the planes of its faces.
-    tri = idx.vertices[idx.faces]
+    tri = idx.mesh.vertices[idx.mesh.faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     inner = np.abs(np.einsum("ij,ij->i", n / np.linalg.norm(n, axis=1, keepdims=True), tri[:, 0]))
     sag = r - inner.min()
@@ -315,7 +325,7 @@ def test_closest_points_near_a_sphere(sphere_index):
     w = idx.surface._barycentric(closest, face)
     assert np.allclose(np.einsum("ni,nij->nj", w, tri[face]), closest, atol=1e-12)
     # no points: empty answers
-    d0, c0, f0 = idx.closest_points(np.zeros((0, 3)))
+    d0, c0, f0 = idx.surface.closest_points(np.zeros((0, 3)))
     assert d0.shape == (0,)
     assert c0.shape == (0, 3)
     assert f0.shape == (0,)
@@ -331,24 +341,27 @@ def test_closest_points_near_a_sphere(sphere_index):
 )
 def test_closest_points_errors(sphere_index, points, match):
     with pytest.raises(ValueError, match=match):
-        sphere_index.closest_points(points)
+        sphere_index.surface.closest_points(points)
 
 
 def test_interpolated_normals(sphere_index):
     idx = sphere_index
     rng = np.random.default_rng(5)
     P = rng.normal(size=(300, 3)) * 3
-    _, closest, face = idx.closest_points(P)
-    normals = idx.interpolated_normals(closest, face)
+    _, closest, face = idx.surface.closest_points(P)
+    normals = idx.surface.interpolated_normals(closest, face)
     assert np.allclose(np.linalg.norm(normals, axis=1), 1.0)
     radial = closest / np.linalg.norm(closest, axis=1, keepdims=True)
     assert np.einsum("ij,ij->i", normals, radial).min() > 0.9999
     # at a vertex the blend is that vertex's normal
     f = np.arange(10)
-    corner = idx.faces[f, 1]
-    got = idx.interpolated_normals(idx.vertices[corner], f)
-    assert np.allclose(got, idx.vertex_normals[corner], atol=1e-12)
-    assert idx.interpolated_normals(np.zeros((0, 3)), np.zeros(0, dtype=int)).shape == (0, 3)
+    corner = idx.mesh.faces[f, 1]
+    got = idx.surface.interpolated_normals(idx.mesh.vertices[corner], f)
+    assert np.allclose(got, idx.mesh.vertex_normals[corner], atol=1e-12)
+    assert idx.surface.interpolated_normals(np.zeros((0, 3)), np.zeros(0, dtype=int)).shape == (
+        0,
+        3,
+    )
 
 
 @pytest.mark.parametrize(
@@ -363,7 +376,7 @@ def test_interpolated_normals(sphere_index):
 )
 def test_interpolated_normals_errors(sphere_index, closest, face, match):
     with pytest.raises(ValueError, match=match):
-        sphere_index.interpolated_normals(closest, face)
+        sphere_index.surface.interpolated_normals(closest, face)
 
 
 # ----------------------------------------------------------------------------- caching
@@ -387,7 +400,7 @@ def test_cached_load_is_equal_and_flagged(tmp_path):
     assert first.curvature.kh_scale == second.curvature.kh_scale
     assert second.name == "ball"
     assert len(list((tmp_path / "cache").iterdir())) == 1
-    assert not second.vertices.flags.writeable
+    assert not second.mesh.vertices.flags.writeable
     assert "ball" in repr(second)
     # force rebuilds
     assert not ModelIndex.from_file(
@@ -404,7 +417,7 @@ def test_cache_rebuilds_on_changed_bytes_or_params(tmp_path):
     params = IndexParams(min_radius=3, max_radius=3)
     changed = ModelIndex.from_file(path, params=params, cache_dir=cache)
     assert not changed.from_cache
-    assert changed.radius_edges == 3
+    assert changed.curvature.radius_edges == 3
     assert ModelIndex.from_file(path, params=params, cache_dir=cache).from_cache
     path.write_text(path.read_text() + "\n# a comment changes the bytes\n")
     assert not ModelIndex.from_file(path, cache_dir=cache).from_cache
@@ -438,7 +451,7 @@ def test_corrupt_cache_file_warns_and_rebuilds(tmp_path):
     with pytest.warns(CacheWarning, match="unreadable"):
         again = ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache")
     assert not again.from_cache
-    assert np.array_equal(again.K, good.K)
+    assert np.array_equal(again.curvature.K, good.curvature.K)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert ModelIndex.from_file(tmp_path / "ball.stl", cache_dir=tmp_path / "cache").from_cache
@@ -473,7 +486,7 @@ def test_unwritable_cache_still_works(tmp_path):
             cache_dir=blocker / "cache",
         )
     assert not idx.from_cache
-    assert idx.valid.all()
+    assert idx.curvature.valid.all()
 
 
 def test_read_only_cache_still_works(tmp_path, monkeypatch):
@@ -488,7 +501,7 @@ def test_read_only_cache_still_works(tmp_path, monkeypatch):
         with pytest.warns(CacheWarning, match="continuing without caching"):
             idx = _index(tmp_path, mesh, "ball")
         assert not idx.from_cache
-        assert idx.valid.all()
+        assert idx.curvature.valid.all()
 
 
 def test_default_cache_dir_comes_from_the_environment(tmp_path, monkeypatch):
@@ -532,7 +545,7 @@ def test_record_checks_shapes(sphere_index):
         IndexRecord.from_arrays({**arrays, "scale": np.zeros(2)})
     copy = ModelIndex.from_record(sphere_index.path, sphere_index.params, IndexRecord(**base))
     box = (0.25, 0.5, 0.01, 0.01)
-    assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))
+    assert np.array_equal(copy.curvature.lookup(*box), sphere_index.curvature.lookup(*box))
 
 
 def test_parts_check_their_inputs(sphere_index):
@@ -566,40 +579,21 @@ def test_parts_check_their_inputs(sphere_index):
         ModelIndex.from_record(sphere_index.path, sphere_index.params, {})
 
 
-def test_the_parts_and_the_delegating_names_agree(sphere_index):
+def test_each_job_has_one_home(sphere_index):
+    # the mesh, the curvature table and the surface queries are the index's parts; the
+    # index itself holds no copy of their arrays or queries
     idx = sphere_index
     assert isinstance(idx.surface, SurfaceQuery)
-    assert idx.vertices is idx.mesh.vertices
-    assert idx.faces is idx.mesh.faces
-    assert idx.vertex_normals is idx.mesh.vertex_normals
-    assert idx.face_normals is idx.mesh.face_normals
-    assert (idx.closed, idx.scale, idx.avg_edge) == (
-        idx.mesh.closed,
-        idx.mesh.scale,
-        idx.mesh.avg_edge,
-    )
-    for name in ("k1", "k2", "dir1", "dir2", "valid", "K", "H"):
-        assert getattr(idx, name) is getattr(idx.curvature, name)
-    assert idx.radius_edges == idx.curvature.radius_edges
-    assert idx.curvature_radius == idx.curvature.curvature_radius
+    for name in ("vertices", "faces", "k1", "K", "lookup", "closest_points", "smooth_offsets"):
+        assert not hasattr(idx, name), name
+    assert len(idx.curvature.K) == len(idx.mesh.vertices)
     P = np.array([[0.0, 0.0, 3.0], [1.0, 1.0, 0.5]])
-    dist, closest, face = idx.closest_points(P)
-    for a, b in zip((dist, closest, face), idx.surface.closest_points(P), strict=True):
-        assert np.array_equal(a, b)
-    assert np.array_equal(
-        idx.interpolated_normals(closest, face), idx.surface.interpolated_normals(closest, face)
-    )
-    assert np.array_equal(
-        idx.smooth_offsets(closest, face), idx.surface.smooth_offsets(closest, face)
-    )
-    h, g = idx.smooth_offsets_and_gradients(closest, face)
-    h2, g2 = idx.surface.smooth_offsets_and_gradients(closest, face)
-    assert np.array_equal(h, h2)
-    assert np.array_equal(g, g2)
-    box = (0.25, 0.5, 0.01, 0.01)
-    assert np.array_equal(idx.lookup(*box), idx.curvature.lookup(*box))
-    with pytest.raises(AttributeError):
-        idx.vertices = idx.vertices  # read-only
+    dist, closest, _ = idx.surface.closest_points(P)
+    # on the icosphere of radius 2 the distances are the radial ones up to the chord error
+    assert np.allclose(dist, np.abs(np.linalg.norm(P, axis=1) - 2.0), atol=0.01)
+    assert np.allclose(np.linalg.norm(closest, axis=1), 2.0, atol=0.01)
+    with pytest.raises(ValueError, match="read-only"):
+        idx.mesh.vertices[0, 0] = 1.0
     assert "sphere" in repr(idx)
     assert "MeshData(" in repr(idx.mesh)
     assert "CurvatureTable(" in repr(idx.curvature)
@@ -610,16 +604,20 @@ def test_pickle_roundtrip_rebuilds_the_trees(sphere_index):
     copy = pickle.loads(pickle.dumps(sphere_index))
     assert copy.name == sphere_index.name
     assert copy.load_seconds == sphere_index.load_seconds
-    assert np.array_equal(copy.K, sphere_index.K)
+    assert np.array_equal(copy.curvature.K, sphere_index.curvature.K)
     P = np.array([[0.0, 0.0, 3.0], [1.0, 1.0, 0.5]])
-    for a, b in zip(copy.closest_points(P), sphere_index.closest_points(P), strict=True):
+    for a, b in zip(
+        copy.surface.closest_points(P), sphere_index.surface.closest_points(P), strict=True
+    ):
         assert np.array_equal(a, b)
     box = (0.25, 0.5, 0.01, 0.01)
-    assert np.array_equal(copy.lookup(*box), sphere_index.lookup(*box))
-    assert not copy.vertices.flags.writeable
+    assert np.array_equal(copy.curvature.lookup(*box), sphere_index.curvature.lookup(*box))
+    assert not copy.mesh.vertices.flags.writeable
     assert not copy.curvature.K.flags.writeable
-    h, g = copy.smooth_offsets_and_gradients(*sphere_index.closest_points(P)[1:])
-    h0, g0 = sphere_index.smooth_offsets_and_gradients(*sphere_index.closest_points(P)[1:])
+    h, g = copy.surface.smooth_offsets_and_gradients(*sphere_index.surface.closest_points(P)[1:])
+    h0, g0 = sphere_index.surface.smooth_offsets_and_gradients(
+        *sphere_index.surface.closest_points(P)[1:]
+    )
     assert np.array_equal(h, h0)
     assert np.array_equal(g, g0)
 
@@ -676,7 +674,9 @@ def test_another_surface_backend_can_replace_the_default(sphere_index):
     assert isinstance(backend, SurfaceQuery)
     other = dataclasses.replace(sphere_index, surface=backend)
     P = np.array([[0.0, 0.0, 3.0]])
-    assert np.array_equal(other.closest_points(P)[0], sphere_index.closest_points(P)[0])
+    assert np.array_equal(
+        other.surface.closest_points(P)[0], sphere_index.surface.closest_points(P)[0]
+    )
     assert backend.calls == 1
     with pytest.raises(TypeError, match="surface must be an AabbSurface to be cached"):
         other.to_record()

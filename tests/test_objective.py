@@ -30,7 +30,7 @@ def _points(n, offset, seed=0):
 def test_residuals_measure_the_smooth_sphere_not_the_facets(sphere):
     # A coarse sphere (edge ~0.15): the facets lie up to a sagitta inside the sphere.
     pts = _points(2000, 0.0)
-    flat, _, _ = sphere.closest_points(pts)
+    flat, _, _ = sphere.surface.closest_points(pts)
     smooth = np.abs(residuals(sphere, pts).values)
     assert flat.max() > 1e-3
     assert smooth.max() < 0.2 * flat.max()

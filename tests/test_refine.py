@@ -39,9 +39,9 @@ def _pose_error(T, T_true):
 def _touch(model, seed, radius=0.6, count=300):
     """Vertices of the model near a random one, in a random touch frame; the true pose."""
     rng = np.random.default_rng(seed)
-    centre = model.vertices[rng.integers(len(model.vertices))]
-    near = np.flatnonzero(np.linalg.norm(model.vertices - centre, axis=1) < radius)
-    chosen = model.vertices[rng.choice(near, size=min(count, len(near)), replace=False)]
+    centre = model.mesh.vertices[rng.integers(len(model.mesh.vertices))]
+    near = np.flatnonzero(np.linalg.norm(model.mesh.vertices - centre, axis=1) < radius)
+    chosen = model.mesh.vertices[rng.choice(near, size=min(count, len(near)), replace=False)]
     T_model_touch = _rigid(Rotation.random(random_state=seed).as_rotvec(), rng.normal(size=3))
     return apply_transform(invert_transform(T_model_touch), chosen), T_model_touch
 

@@ -54,15 +54,15 @@ def test_a_file_changed_during_indexing_is_cached_under_its_own_content(tmp_path
     first = ModelIndex.from_file(path, cache_dir=cache)
     monkeypatch.undo()
     assert swapped
-    assert len(first.vertices) == 162  # the content that was there when indexing began
+    assert len(first.mesh.vertices) == 162  # the content that was there when indexing began
     # The file now holds the large sphere: it must not be answered from the entry of the
     # small sphere's content, and the small sphere's entry must hold the small sphere.
     now = ModelIndex.from_file(path, cache_dir=cache)
-    assert len(now.vertices) == 642
+    assert len(now.mesh.vertices) == 642
     small.export(path)
     again = ModelIndex.from_file(path, cache_dir=cache)
     assert again.from_cache
-    assert len(again.vertices) == 162
+    assert len(again.mesh.vertices) == 162
 
 
 # ------------------------------------------------------------- 2: huge declared arrays
@@ -96,7 +96,7 @@ def test_a_cache_entry_declaring_a_huge_array_is_rebuilt(tmp_path):
     with pytest.warns(CacheWarning, match=r"unreadable \(k1\.npy: its header declares float64"):
         again = ModelIndex.from_file(path, cache_dir=cache)
     assert not again.from_cache
-    assert np.array_equal(again.K, good.K)
+    assert np.array_equal(again.curvature.K, good.curvature.K)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert ModelIndex.from_file(path, cache_dir=cache).from_cache  # rewritten
@@ -193,13 +193,23 @@ def _models(folder: Path) -> Path:
 def _same_models(a: ModelLibrary, b: ModelLibrary) -> None:
     assert a.names == b.names
     for x, y in zip(a, b, strict=True):
-        for name in ("vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid"):
-            assert np.array_equal(getattr(x, name), getattr(y, name), equal_nan=True), name
-        assert (x.closed, x.scale, x.avg_edge, x.radius_edges) == (
-            y.closed,
-            y.scale,
-            y.avg_edge,
-            y.radius_edges,
+        for part, name in (
+            ("mesh", "vertices"),
+            ("mesh", "faces"),
+            ("mesh", "vertex_normals"),
+            ("curvature", "k1"),
+            ("curvature", "k2"),
+            ("curvature", "dir1"),
+            ("curvature", "dir2"),
+            ("curvature", "valid"),
+        ):
+            a, b = getattr(getattr(x, part), name), getattr(getattr(y, part), name)
+            assert np.array_equal(a, b, equal_nan=True), name
+        assert (x.mesh.closed, x.mesh.scale, x.mesh.avg_edge, x.curvature.radius_edges) == (
+            y.mesh.closed,
+            y.mesh.scale,
+            y.mesh.avg_edge,
+            y.curvature.radius_edges,
         )
 
 

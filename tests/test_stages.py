@@ -222,7 +222,10 @@ def test_lookup_scale_widens_the_window_by_its_factor(surfaces, touch):
     assert wide.tol_K == pytest.approx(3.0 * base.tol_K, rel=1e-15)
     assert wide.tol_H == pytest.approx(3.0 * base.tol_H, rel=1e-15)
     K, H = g.k1 * g.k2, 0.5 * (g.k1 + g.k2)
-    brute = np.sum((np.abs(model.K - K) <= wide.tol_K) & (np.abs(model.H - H) <= wide.tol_H))
+    brute = np.sum(
+        (np.abs(model.curvature.K - K) <= wide.tol_K)
+        & (np.abs(model.curvature.H - H) <= wide.tol_H)
+    )
     assert wide.raw_hits == brute >= base.raw_hits
     reg = register(touch, model, lookup_scale=3.0)
     assert reg.raw_hits >= register(touch, model).raw_hits

@@ -118,7 +118,7 @@ def test_millimetres_against_metres_is_caught(boxes):
     # the same touch in millimetres. The earlier check (touch diagonal against
     # 100 x sqrt(area) of the largest model) let it through: 26 mm is 75 of them.
     touch_mm = convert_touch(touch_m, "m", "mm")
-    assert _diagonal(touch_mm) / boxes["cracker"].scale < defaults.UNIT_MISMATCH_RATIO
+    assert _diagonal(touch_mm) / boxes["cracker"].mesh.scale < defaults.UNIT_MISMATCH_RATIO
     with pytest.raises(
         ValueError,
         match=r"is \d+ times larger than the nearest-sized model 'cracker' \(bounding-box "
@@ -135,8 +135,8 @@ def test_millimetres_against_metres_is_caught(boxes):
 
 
 def test_the_limits_are_the_defaults(boxes):
-    big = float(np.linalg.norm(np.ptp(boxes["cracker"].vertices, axis=0)))  # the largest
-    small = float(np.linalg.norm(np.ptp(boxes["flat"].vertices, axis=0)))
+    big = float(np.linalg.norm(np.ptp(boxes["cracker"].mesh.vertices, axis=0)))  # the largest
+    small = float(np.linalg.norm(np.ptp(boxes["flat"].mesh.vertices, axis=0)))
     assert small < big
     d = _diagonal(_star(1.0))
     ok = _star(0.95 * defaults.UNIT_MAX_TOUCH_DIAGONALS * big / d)

@@ -58,7 +58,7 @@ def test_a_paper_touch_is_recognised_with_calibrated_fields(surfaces):
     np.testing.assert_array_equal(top.poses[0].T_model_touch, rec.best.T_model_touch)
     # the rms is the RMS of the point-to-surface distances at that pose
     pts = meshrec.registration.transform.apply_transform(rec.best.T_model_touch, sim.touch.points)
-    dist, _, _ = surfaces["ellipsoid"].closest_points(pts)
+    dist, _, _ = surfaces["ellipsoid"].surface.closest_points(pts)
     assert top.rms == pytest.approx(float(np.sqrt(np.mean(dist**2))), rel=0.05)
     assert "verdict='recognised'" in repr(rec)
     assert rec.scoring_seconds < 0.1 * rec.seconds

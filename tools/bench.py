@@ -223,8 +223,9 @@ def _index_times(out):
                     loads.append(time.perf_counter() - t0)
                 load = float(np.median(loads))
                 ok = build <= TARGET_BUILD and load <= TARGET_LOAD
-                out.append(f"| {lib}/{path.name} | {len(m.faces):,} | {len(m.vertices):,} "
-                           f"| {m.radius_edges} | {build:.2f} | {load:.3f} | {_ok(ok)} |")
+                faces, vertices = len(m.mesh.faces), len(m.mesh.vertices)
+                out.append(f"| {lib}/{path.name} | {faces:,} | {vertices:,} "
+                           f"| {m.curvature.radius_edges} | {build:.2f} | {load:.3f} | {_ok(ok)} |")
     out.append("")
 
 

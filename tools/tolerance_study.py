@@ -30,7 +30,7 @@ MODELS = Path(__file__).resolve().parents[1] / "models" / "surfaces"
 def _margin(model, tree, sim) -> tuple[bool, float]:
     """Whether the true vertex is in the window, and the margin, on the better side."""
     _, v = tree.query(sim.contact)
-    K_true, H_true = model.K[v], model.H[v]
+    K_true, H_true = model.curvature.K[v], model.curvature.H[v]
     geom = meshrec.estimate_local_geometry(sim.touch.curves)
     best = (False, 0.0)
     # Three curves cannot tell the sides apart: the lookup tries both, so does the study.
@@ -56,7 +56,7 @@ def main(argv=None) -> int:
     total = inside_total = 0
     for name in meshrec.PAPER_SURFACES:
         model = library[name]
-        tree = cKDTree(model.vertices)
+        tree = cKDTree(model.mesh.vertices)
         rows = [
             _margin(model, tree, meshrec.simulate_touch(model, rng=seed))
             for seed in range(args.seed, args.seed + args.trials)

@@ -52,8 +52,8 @@ def run_index(args, out, err) -> int:
     for m in library.models:
         how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
         out.write(
-            f"{m.name:<24} {len(m.faces):>8} faces  {int(m.valid.sum()):>8} table entries  "
-            f"{how}\n"
+            f"{m.name:<24} {len(m.mesh.faces):>8} faces  "
+            f"{int(m.curvature.valid.sum()):>8} table entries  {how}\n"
         )
     return 0
 

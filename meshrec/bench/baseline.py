@@ -140,7 +140,7 @@ class BaselineModel:
         t0 = time.perf_counter()
         # Uniform samples by area with their face's normal. (trimesh.sample does the same
         # on a Trimesh; the index holds bare arrays, so sample barycentrically here.)
-        v, f = model.vertices, model.faces
+        v, f = model.mesh.vertices, model.mesh.faces
         cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
         area = 0.5 * np.linalg.norm(cross, axis=1)
         n = defaults.BASELINE_MODEL_POINTS
@@ -149,7 +149,7 @@ class BaselineModel:
         bary = np.column_stack([1 - s, s * (1 - r2), s * r2])
         samples = np.einsum("ni,nij->nj", bary, v[f[face]])
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(samples))
-        cloud.normals = o3d.utility.Vector3dVector(model.face_normals[face])
+        cloud.normals = o3d.utility.Vector3dVector(model.mesh.face_normals[face])
         return cls(index=model, cloud=cloud, features={}, seconds=time.perf_counter() - t0)
 
     def fpfh(self, radius: float):

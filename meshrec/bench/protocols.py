@@ -150,7 +150,7 @@ def paper_touch(model, seed: int, n_points: int | None = None, noise: float | No
     SimulatedTouch
     """
     rng = np.random.default_rng(seed)
-    length = length_fraction * model.scale
+    length = length_fraction * model.mesh.scale
     is_object = model.name in OBJECT_SIDES or model.name == "sphere"
     if n_points is None:
         n_points = defaults.BENCH_OBJECT_POINTS if is_object else defaults.SIM_POINTS

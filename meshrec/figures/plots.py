@@ -26,6 +26,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.figures._pixels import check_size, write_png_atomic
 from meshrec.figures.viz import COLORS, VizDependencyError
+from meshrec.model.index import ModelIndex
 from meshrec.model.mesh import load_mesh
 from meshrec.registration.brackets import phi_error, refine_phis
 from meshrec.registration.chart import tangent_frame
@@ -106,7 +107,9 @@ def _save(fig, path: Path) -> Path:
 
 
 def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) of a mesh file, a mesh object, or a (vertices, faces) pair."""
+    """(vertices, faces) of a mesh file, a model index, a mesh object, or a pair."""
+    if isinstance(mesh, ModelIndex):
+        mesh = mesh.mesh
     if isinstance(mesh, (str, os.PathLike)):
         V, F = load_mesh(mesh)
     elif isinstance(mesh, tuple) and len(mesh) == 2:

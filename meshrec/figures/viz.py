@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from meshrec.figures._pixels import check_size, write_png_atomic
+from meshrec.model.index import ModelIndex
 from meshrec.model.mesh import load_mesh
 from meshrec.registration.transform import apply_transform
 
@@ -381,6 +382,8 @@ def _load_truth(truth, touch, model_name: str):
 def _mesh_arrays(mesh, reg) -> tuple[np.ndarray, np.ndarray]:
     if mesh is None:
         mesh = reg.path
+    if isinstance(mesh, ModelIndex):
+        mesh = mesh.mesh
     if isinstance(mesh, (str, os.PathLike)):
         V, F = load_mesh(mesh)
         return np.array(V, dtype=np.float64), np.array(F, dtype=np.int64)

@@ -189,10 +189,10 @@ class ModelLibrary:
                     reason = str(exc)
                 else:
                     models[path.stem] = model
-                    if not model.valid.any():
+                    if not model.curvature.valid.any():
                         unusable.append(
                             f"model {path.stem!r} ({str(path)!r}): no vertex has a usable "
-                            f"curvature estimate ({len(model.faces)} faces: too coarse or "
+                            f"curvature estimate ({len(model.mesh.faces)} faces: too coarse or "
                             "degenerate), so no touch will ever match it"
                         )
                     continue

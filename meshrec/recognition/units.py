@@ -182,7 +182,7 @@ def check_units(touch: TouchData, models) -> None:
     size = _diagonal(touch.points)
     if not size > 0.0:
         return  # a point-like touch: the geometry estimate says what is wrong with it
-    diagonals = np.array([_diagonal(np.asarray(m.vertices)) for m in models])
+    diagonals = np.array([_diagonal(np.asarray(m.mesh.vertices)) for m in models])
     ratio = size / diagonals
     upper, lower = defaults.UNIT_MAX_TOUCH_DIAGONALS, 1.0 / defaults.UNIT_MISMATCH_RATIO
     if np.all(ratio > upper):

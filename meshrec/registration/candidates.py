@@ -166,12 +166,13 @@ def find_candidates(
     tol_K, tol_H = curvature_tolerance(k1, k2, half_length, fit_rms)
     if lookup_scale != 1.0:
         tol_K, tol_H = tol_K * lookup_scale, tol_H * lookup_scale
-    hits = model.lookup(K, H, tol_K, tol_H)
+    hits = model.curvature.lookup(K, H, tol_K, tol_H)
     if len(hits) == 0:
         return CandidateSet(np.zeros(0, dtype=np.int64), 0, tol_K, tol_H)
     # Start from the closest match in (K, H) so that the best one is always tried.
-    mismatch = np.abs(model.K[hits] - K) / tol_K + np.abs(model.H[hits] - H) / tol_H
+    table = model.curvature
+    mismatch = np.abs(table.K[hits] - K) / tol_K + np.abs(table.H[hits] - H) / tol_H
     first = int(np.argmin(mismatch))
     spacing = defaults.CANDIDATE_SPACING_FRACTION * half_length
-    chosen = spread_points(model.vertices[hits], spacing, max_candidates, first=first)
+    chosen = spread_points(model.mesh.vertices[hits], spacing, max_candidates, first=first)
     return CandidateSet(hits[chosen], len(hits), tol_K, tol_H)

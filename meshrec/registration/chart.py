@@ -115,8 +115,8 @@ class SurfaceChart:
         """
         d1, d2, n0 = self.origin.frame.T
         x = self.origin.point + u * d1 + v * d2
-        _, closest, face = self.model.closest_points(x[None, :])
-        n = self.model.interpolated_normals(closest, face)[0]
+        _, closest, face = self.model.surface.closest_points(x[None, :])
+        n = self.model.surface.interpolated_normals(closest, face)[0]
         if np.dot(n, n0) < 0.0:
             # A fold of the mesh within the chart: keep the side we started on.
             n = -n

@@ -94,7 +94,7 @@ def surface_sides(geometry: LocalGeometry, touch: TouchData, model) -> tuple[Loc
     tuple of LocalGeometry
         ``(geometry,)`` or ``(geometry, geometry.flipped())``.
     """
-    if touch.normal is not None and model.closed:
+    if touch.normal is not None and model.mesh.closed:
         return (geometry,)
     return (geometry, geometry.flipped())
 
@@ -162,8 +162,8 @@ def lookup_candidates(
         vertices.extend(int(v) for v in cand.vertices)
     origins = tuple(
         SurfacePoint(
-            point=model.vertices[v],
-            frame=tangent_frame(model.vertex_normals[v], hint=model.dir1[v]),
+            point=model.mesh.vertices[v],
+            frame=tangent_frame(model.mesh.vertex_normals[v], hint=model.curvature.dir1[v]),
         )
         for v in vertices
     )

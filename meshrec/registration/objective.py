@@ -55,8 +55,8 @@ def residuals(model, points: np.ndarray) -> Residuals:
     -------
     Residuals
     """
-    dist, closest, face = model.closest_points(points)
-    normals = model.face_normals[face]
+    dist, closest, face = model.surface.closest_points(points)
+    normals = model.mesh.face_normals[face]
     diff = points - closest
     side = np.einsum("ij,ij->i", diff, normals)
     sign = np.where(side < 0.0, -1.0, 1.0)
@@ -68,7 +68,7 @@ def residuals(model, points: np.ndarray) -> Residuals:
     # Distance to the smooth surface the vertex normals imply, not to the flat faces: the
     # height of that surface above the face is subtracted, and its slope along the face
     # (the closest point moves with the point) from the gradient.
-    heights, slopes = model.smooth_offsets_and_gradients(closest, face)
+    heights, slopes = model.surface.smooth_offsets_and_gradients(closest, face)
     return Residuals(values=sign * dist - heights, closest=closest, gradient=unit - slopes)
 
 
@@ -87,5 +87,5 @@ def mean_distances(model, points: np.ndarray) -> np.ndarray:
         The mean distance of each batch (the paper's error (1) divided by ``n``).
     """
     k, n, _ = points.shape
-    dist, _, _ = model.closest_points(np.ascontiguousarray(points.reshape(-1, 3)))
+    dist, _, _ = model.surface.closest_points(np.ascontiguousarray(points.reshape(-1, 3)))
     return dist.reshape(k, n).mean(axis=1)

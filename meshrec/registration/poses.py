@@ -149,8 +149,8 @@ def pose_hypotheses(
         side = candidates.sides[candidates.side[run.candidate]]
         T = r.refinement.T_model_touch
         guess = apply_transform(T, candidates.geometry.point[None, :])
-        _, closest, face = model.closest_points(guess)
-        normal = model.interpolated_normals(closest, face)[0]
+        _, closest, face = model.surface.closest_points(guess)
+        normal = model.surface.interpolated_normals(closest, face)[0]
         frame = tangent_frame(normal, hint=run.result.surface.frame[:, 0])
         placed_x = T[:3, :3] @ side.frame[:, 0]
         phi = float(np.arctan2(placed_x @ frame[:, 1], placed_x @ frame[:, 0]) % (2.0 * np.pi))

@@ -406,13 +406,13 @@ def refine_pose(
     ref = refine_rigid(model, touch.points, T0)
     t_refine = time.perf_counter() - t0
     contact_guess = apply_transform(ref.T_model_touch, geometry.point[None, :])
-    _, closest, face = model.closest_points(contact_guess)
+    _, closest, face = model.surface.closest_points(contact_guess)
     pose = PoseHypothesis(
         T_model_touch=ref.T_model_touch,
         error=float(ref.error),
         rms=float(ref.rms),
         contact=closest[0],
-        normal=model.interpolated_normals(closest, face)[0],
+        normal=model.surface.interpolated_normals(closest, face)[0],
         phi=None,
         run=None,
     )

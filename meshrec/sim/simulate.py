@@ -39,6 +39,7 @@ from meshrec.io.checks import (
 )
 from meshrec.io.touch import TouchData
 from meshrec.io.truth import Truth, write_truth
+from meshrec.model.index import ModelIndex
 
 __all__ = ["SimulatedTouch", "simulate_touch"]
 
@@ -388,6 +389,8 @@ def _resolve_mesh(mesh) -> tuple[trimesh.Trimesh, str]:
         if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
             raise ValueError(f"{label}: holds no triangle mesh")
         return loaded, path.stem
+    if isinstance(mesh, ModelIndex):
+        mesh = mesh.mesh
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
         vertices = check_points(mesh.vertices, "mesh.vertices")
         faces = np.asarray(mesh.faces)
