@@ -312,3 +312,62 @@ WIDEN_P_VALUE = 0.01
 #: had no vertex on its cylinder, 42 of 60 touches rejected at 1x: 8 were found at 3x,
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
+
+# --- where to touch next (meshrec.recognition.advice) ---------------------------------------
+#: Candidate contacts sampled on the hypotheses' surfaces, about this many in all (shared
+#: by weight): enough that the region where two hypotheses differ (a cylinder's cap, a
+#: bump) gets tens of samples; the screen and reachability cost grow linearly with it.
+ADVICE_CANDIDATES = 400
+#: Most candidate contacts accepted (the distance queries grow linearly: 1e5 take about
+#: a minute).
+ADVICE_MAX_CANDIDATES = 100_000
+#: At least this many candidates on each hypothesis, however light (so that a hypothesis
+#: of weight 0.01 still offers the places only it has).
+ADVICE_MIN_PER_HYPOTHESIS = 16
+#: The heaviest (model, pose) hypotheses weighed, at most (the separation cost grows with
+#: its square; past 8 the remaining weight is rarely above 1e-3).
+ADVICE_MAX_HYPOTHESES = 8
+#: Hypotheses lighter than this (model probability x pose weight) are left out: they
+#: change the expected gain by less than 1e-2 nats.
+ADVICE_MIN_WEIGHT = 1e-3
+#: Poses of one model are the same hypothesis when the model's vertices (this many, evenly
+#: strided) placed by one lie within ADVICE_SAME_POSE_NOISE x the noise of the surface
+#: placed by the other: a symmetric object's equivalent poses. Without the merge the four
+#: equivalent poses of the bundled elliptic cylinder, 0.003 apart (a fifth of the noise,
+#: the refinement's and the facets' scatter), were "separated" with a gain of 0.08 nats.
+ADVICE_SAME_POSE_POINTS = 256
+#: ... (3: the equivalent poses above differ by at most a third of the noise; a slide
+#: along a cylinder by 3 noise levels is already separable by a cap touch).
+ADVICE_SAME_POSE_NOISE = 3.0
+#: Half-angle of the cone of free space the probe needs around its approach ray, degrees:
+#: a candidate whose ray passes closer than sin(15 deg) x s to the surface at distance s is
+#: in a concavity or behind another part (a probe tip and its curves need room besides the
+#: ray itself).
+ADVICE_CLEARANCE_DEG = 15.0
+#: The ray is checked out to this fraction of the model's bounding-box diagonal (half: the
+#: whole object lies within it from any surface point's view when it is convex).
+ADVICE_STANDOFF_FRACTION = 0.5
+#: Points along the ray checked, spaced quadratically (denser near the contact, where a
+#: concave corner closes in first).
+ADVICE_RAY_STEPS = 12
+#: With a direction hint, candidates approached more than this far from it are dropped,
+#: degrees (a probe pressed along its motion slips on a surface tilted much further).
+ADVICE_MAX_APPROACH_DEG = 30.0
+#: Points per chord of the simulated next touch's patch (three chords of the curves'
+#: length through the contact, 60 degrees apart: 19 distinct points).
+ADVICE_PATCH_POINTS = 7
+#: Candidates kept after the screen on the contact point alone, scored again on their whole
+#: patch (the whole-patch score of every candidate costs about 20 times as many distance
+#: queries).
+ADVICE_REFINE = 32
+#: Separating gains below this (nats) count as none: the hypotheses cannot be told apart
+#: at any reachable point (symmetric poses), and the pose criterion is used instead.
+ADVICE_MIN_GAIN = 1e-2
+#: Gains within this of the best (nats) are ties, broken by the probability-weighted mean
+#: squared distance between the hypotheses' surfaces (separation saturates at the full
+#: entropy wherever the surfaces differ by a few noise levels; the larger difference is
+#: the more robust to model error).
+ADVICE_GAIN_TIE = 1e-2
+#: Ridge added to the pose information matrix, relative to its mean eigenvalue (symmetric
+#: shapes leave null directions: a cylinder's roll about its axis).
+ADVICE_RIDGE = 1e-6
