@@ -39,6 +39,8 @@ _WHERE = {
     "ModelLibrary": "meshrec.model.library",
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
+    "JointFit": "meshrec.recognition.joint",
+    "register_touches": "meshrec.recognition.joint",
     "Recognition": "meshrec.recognition.recognize",
     "recognize": "meshrec.recognition.recognize",
     "ModelScore": "meshrec.recognition.scoring",
@@ -86,6 +88,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
+    from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
     from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
@@ -111,6 +114,7 @@ __all__ = [
     "CommonPoint",
     "ContactCandidates",
     "IndexParams",
+    "JointFit",
     "LocalGeometry",
     "ModelIndex",
     "ModelLibrary",
@@ -148,6 +152,7 @@ __all__ = [
     "refine_pose",
     "refine_searches",
     "register",
+    "register_touches",
     "screen_candidates",
     "search_candidates",
     "simulate_touch",

@@ -313,6 +313,28 @@ WIDEN_P_VALUE = 0.01
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
 
+# --- several touches of one object (meshrec.recognition.joint) ------------------------------
+#: Pose hypotheses per model refined jointly on every touch's points, the ones with the
+#: least joint RMS at their starting pose first (each single-touch registration gives up
+#: to ``REFINE_BEST`` distinct poses; most are far off once another touch is added).
+JOINT_REFINE_SEEDS = 3
+#: ... first on about this many of the points (every k-th) with at most this many
+#: iterations, ...
+JOINT_COARSE_POINTS = 150
+JOINT_COARSE_ITER = 10
+#: ... then on all the points those whose coarse RMS is within this factor of the best.
+#: (Seeds are refined at all only if their starting RMS is within it of the least.)
+JOINT_KEEP_RATIO = 1.5
+#: A model whose fit to the touches registered so far already makes it less probable than
+#: this, relative to the best joint fit of any model, is not registered on its remaining
+#: touches: every further touch can only lower its likelihood (the explicit, order-free
+#: pruning step after the per-model work; e^-14 ~ 1e-6, far below any plausible set).
+JOINT_PRUNE_LOG_RATIO = -14.0
+#: Touches of one object whose curves' sizes (bounding-box diagonals) differ by more than
+#: this factor are refused as given in different units (millimetres and metres differ by
+#: 1000; real touches of one probe differ by a few times at most).
+JOINT_MAX_SIZE_RATIO = 30.0
+
 # --- where to touch next (meshrec.recognition.advice) ---------------------------------------
 #: Candidate contacts sampled on the hypotheses' surfaces, about this many in all (shared
 #: by weight): enough that the region where two hypotheses differ (a cylinder's cap, a

@@ -5,14 +5,22 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.recognition.joint import (
+    check_touch_sizes,
+    log_likelihood_bound,
+    pooled_noise,
+    register_touches,
+)
 from meshrec.recognition.scoring import (
     ModelScore,
     WeightedPose,
@@ -65,6 +73,14 @@ class Recognition:
         second lookup, which is counted in ``widened_seconds``).
     widened_seconds : float
         Time of the second, widened lookup pass (0 when the first pass fit the noise).
+    touches : tuple of TouchData
+        Every touch recognised, in the order given (``touch`` is the first); all in one
+        frame, the frame of every ``T_model_touch``.
+    geometries : tuple of LocalGeometry
+        The local geometry of each touch (``geometry`` is the first's).
+    touch_rms : tuple of float or None
+        RMS point-to-surface distance of each touch at the best model's reported pose,
+        model units (None when no model was registered).
     """
 
     touch: TouchData
@@ -79,6 +95,9 @@ class Recognition:
     scores: tuple[ModelScore, ...] = ()
     scoring_seconds: float = 0.0
     widened_seconds: float = 0.0
+    touches: tuple[TouchData, ...] = ()
+    geometries: tuple[LocalGeometry, ...] = ()
+    touch_rms: tuple[float | None, ...] = ()
 
     @property
     def best(self) -> Registration | None:
@@ -97,32 +116,36 @@ class Recognition:
         return (
             f"Recognition(verdict={self.verdict!r}, best={best!r}, "
             f"plausible={list(self.plausible)}, models={len(self.ranking)}, "
+            f"touches={max(len(self.touches), 1)}, "
             f"noise={self.noise:.3g}, K={self.geometry.K:.4g}, H={self.geometry.H:.4g}, "
             f"seconds={self.seconds:.3f})"
         )
 
 
 def recognize(
-    touch: TouchData,
+    touch: TouchData | Sequence[TouchData],
     library,
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
-    geometry: LocalGeometry | None = None,
+    geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
     Parameters
     ----------
-    touch : TouchData
-        The curves, in the touch frame.
+    touch : TouchData or sequence of TouchData
+        One touch, or several touches of one object that did not move between them, all
+        in one frame (the robot's world frame, say). With several, each model is fitted
+        at one rigid pose to all of them (:mod:`meshrec.recognition.joint`) and scored on
+        all the data.
     library : ModelLibrary or iterable of ModelIndex
         The candidate models.
     method : {"lm", "steepest"}
         The local-search optimiser.
     progress : callable, optional
         Called as ``progress(i, n, name)`` before each model is registered.
-    geometry : LocalGeometry, optional
-        The local geometry at the contact, if already estimated (by
+    geometry : LocalGeometry or sequence of LocalGeometry, optional
+        The local geometry at each touch's contact, if already estimated (by
         :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
 
     Returns
@@ -133,25 +156,29 @@ def recognize(
         even the best fit is worse than the noise allows, every model is registered again
         with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict.
         Every warning raised inside is passed on as usual and its text kept in
-        ``Recognition.warnings``.
+        ``Recognition.warnings``. With several touches, ``T_model_touch`` maps their
+        common frame to the model, and touches that no model fits at one pose (the object
+        moved, or it is not in the library) give ``unknown`` with that reason.
 
     Raises
     ------
     TypeError
-        If ``touch`` is not a TouchData, ``library`` not an iterable of ModelIndex,
-        ``method`` not a
-        string, ``geometry`` not a LocalGeometry or ``progress`` not callable (the shared
-        checks of :mod:`meshrec.io.checks`).
+        If ``touch`` is neither a TouchData nor a sequence of them, ``library`` not an
+        iterable of ModelIndex, ``method`` not a string, ``geometry`` not a LocalGeometry
+        (or a sequence of them) or ``progress`` not callable (the shared checks of
+        :mod:`meshrec.io.checks`).
     ValueError
-        If the library is empty, ``method`` is unknown, the touch's size is out of all
+        If there is no touch, the library is empty, ``method`` is unknown, ``geometry``
+        does not hold one LocalGeometry per touch, a touch's size is out of all
         proportion to every model's (a likely unit mismatch, see
-        :func:`meshrec.recognition.units.check_units`), or
-        the curves do not allow an estimate of the local geometry.
+        :func:`meshrec.recognition.units.check_units`) or to another touch's
+        (:func:`meshrec.recognition.joint.check_touch_sizes`), or the curves do not allow
+        an estimate of the local geometry.
     """
     t0 = time.perf_counter()
-    check_instance(touch, TouchData, "touch")
+    touches = _touches(touch)
+    geometries = _geometries(geometry, len(touches))
     check_choice(method, SEARCH_METHODS, "method")
-    check_instance(geometry, LocalGeometry, "geometry", optional=True)
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
     if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
@@ -166,8 +193,12 @@ def recognize(
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            rec = _rank(touch, models, method, progress, geometry)
-            rec = _with_verdict(rec, models, method)
+            if len(touches) == 1:
+                rec = _rank(touches[0], models, method, progress, geometries[0])
+                rec = _with_verdict(rec, {}, models, method)
+            else:
+                rec, fits = _rank_joint(touches, models, method, progress, geometries)
+                rec = _with_verdict(rec, fits, models, method)
     finally:
         # Pass every warning on as before (the caller's filters decide what is shown),
         # also when the recognition fails; the result keeps their text.
@@ -176,6 +207,41 @@ def recognize(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
     return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+
+
+def _touches(touch) -> tuple[TouchData, ...]:
+    """One touch or a sequence of them, checked, as a tuple."""
+    if isinstance(touch, TouchData):
+        return (touch,)
+    if isinstance(touch, (str, bytes)) or not isinstance(touch, Sequence):
+        raise TypeError(
+            f"touch must be a TouchData or a sequence of TouchData, got {type(touch).__name__}"
+        )
+    if len(touch) == 0:
+        raise ValueError("touch must hold at least one TouchData, got an empty sequence")
+    for i, t in enumerate(touch):
+        check_instance(t, TouchData, f"touch[{i}]")
+    return tuple(touch)
+
+
+def _geometries(geometry, n: int) -> tuple:
+    """The given local geometries, one per touch (None where to be estimated)."""
+    if geometry is None:
+        return (None,) * n
+    if isinstance(geometry, LocalGeometry):
+        geometry = (geometry,)
+    elif isinstance(geometry, (str, bytes)) or not isinstance(geometry, Sequence):
+        raise TypeError(
+            "geometry must be a LocalGeometry, a sequence of LocalGeometry or None, got "
+            f"{type(geometry).__name__}"
+        )
+    if len(geometry) != n:
+        raise ValueError(
+            f"geometry must hold one LocalGeometry per touch ({n}), got {len(geometry)}"
+        )
+    for i, g in enumerate(geometry):
+        check_instance(g, LocalGeometry, f"geometry[{i}]")
+    return tuple(geometry)
 
 
 def _rank(touch, library, method, progress, geometry) -> Recognition:
@@ -194,18 +260,95 @@ def _rank(touch, library, method, progress, geometry) -> Recognition:
         if progress is not None:
             progress(i, len(models), model.name)
         results.append(register(touch, model, geometry=geometry, method=method))
-    results.sort(key=lambda r: (r.rejected, r.error if r.error is not None else 0.0, r.model))
-    return Recognition(
-        touch=touch, geometry=geometry, ranking=tuple(results), seconds=time.perf_counter() - t0
+    return _ranked(
+        Recognition(
+            touch=touch,
+            geometry=geometry,
+            ranking=(),
+            seconds=time.perf_counter() - t0,
+            touches=(touch,),
+            geometries=(geometry,),
+        ),
+        results,
     )
 
 
+def _ranked(rec: Recognition, results) -> Recognition:
+    """``rec`` with ``results`` as its ranking, least error first (rejected last)."""
+    results = sorted(
+        results, key=lambda r: (r.rejected, r.error if r.error is not None else 0.0, r.model)
+    )
+    return dataclasses.replace(rec, ranking=tuple(results))
+
+
+def _rank_joint(touches, models, method, progress, geometries):
+    """Several touches: every model fitted at one pose to all, the needed touches alone.
+
+    Per model (independently of the others) the first touch is registered alone and its
+    poses refined on every touch. Then, touch by touch, an explicit order-free step over
+    all the models' fits so far: a model whose joint fit is worse than the noise allows
+    registers its next touch alone too, unless even its best conceivable fit
+    (:func:`~meshrec.recognition.joint.log_likelihood_bound`) is already far below the
+    best joint fit of any model (``defaults.JOINT_PRUNE_LOG_RATIO``).
+    """
+    t0 = time.perf_counter()
+    if not models:
+        raise ValueError("library must hold at least one model, got none")
+    check_touch_sizes(touches)
+    for touch in touches:
+        check_units(touch, models)
+    geometries = tuple(
+        g if g is not None else touch_geometry(t) for t, g in zip(touches, geometries, strict=True)
+    )
+    rec = Recognition(
+        touch=touches[0],
+        geometry=geometries[0],
+        ranking=(),
+        seconds=0.0,
+        touches=touches,
+        geometries=geometries,
+    )
+    noise, n = _noise_and_points(rec)
+    fits = {}
+    for i, model in enumerate(models):
+        if progress is not None:
+            progress(i, len(models), model.name)
+        fits[model.name] = register_touches(touches, model, geometries, upto=1, method=method)
+    # Touch by touch, over every model's fits so far (an order-free step): a model whose
+    # joint fit is worse than the noise allows registers its next touch alone too, unless
+    # even its best conceivable fit is already far below the best model's.
+    for upto in range(2, len(touches) + 1):
+        rms = [f.registration.rms for f in fits.values()]
+        leader = float(np.max(log_likelihoods(rms, n, noise)))
+        for model in models:
+            fit = fits[model.name]
+            r = fit.registration
+            if not r.rejected and fit_p_value(r.rms, n, noise) >= defaults.WIDEN_P_VALUE:
+                continue  # fits every touch to the noise already
+            bound = log_likelihood_bound(fit, touches, noise)
+            if bound < leader + defaults.JOINT_PRUNE_LOG_RATIO:
+                continue  # cannot become plausible, whatever its other touches give
+            fits[model.name] = register_touches(
+                touches, model, geometries, upto=upto, previous=fit, method=method
+            )
+    rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
+    return _ranked(rec, [f.registration for f in fits.values()]), fits
+
+
 # --------------------------------------------------------------------------- the verdict
+def _noise_and_points(rec: Recognition) -> tuple[float, int]:
+    """The noise estimated from the touches (pooled over several) and their points."""
+    touches = rec.touches or (rec.touch,)
+    geometries = rec.geometries or (rec.geometry,)
+    noises = [noise_estimate(g.fit_rms, g.noise_rms, g.half_length) for g in geometries]
+    counts = [int(t.n_points) for t in touches]
+    noise = noises[0] if len(noises) == 1 else pooled_noise(noises, counts)
+    return noise, int(sum(counts))
+
+
 def _score(rec: Recognition) -> tuple[tuple[ModelScore, ...], float]:
     """Per-model calibrated scores (ranking order) and the noise estimate."""
-    g = rec.geometry
-    n = int(rec.touch.n_points)
-    noise = noise_estimate(g.fit_rms, g.noise_rms, g.half_length)
+    noise, n = _noise_and_points(rec)
     rms, poses = [], []
     for reg in rec.ranking:
         if reg.rejected:
@@ -242,35 +385,53 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
     )
 
 
-def _widened(rec: Recognition, models: dict, method: str) -> Recognition:
-    """Register every model again with the (K, H) window widened; keep each one's better fit."""
-    g = rec.geometry
+def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recognition:
+    """Register every model again with the (K, H) window widened; keep each one's better fit.
+
+    With several touches, each is registered alone with the wider window; ``fits`` (the
+    joint fits, by model) is updated in place where the wider pass fits better.
+    """
     merged = []
     for reg in rec.ranking:
-        wide = register(
-            rec.touch,
-            models[reg.model],
-            geometry=g,
-            method=method,
-            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-        )
+        if len(rec.touches) > 1:
+            fit = register_touches(
+                rec.touches,
+                models[reg.model],
+                rec.geometries,
+                upto=len(rec.touches),
+                method=method,
+                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            )
+            wide = fit.registration
+        else:
+            fit = None
+            wide = register(
+                rec.touch,
+                models[reg.model],
+                geometry=rec.geometry,
+                method=method,
+                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            )
         if reg.rejected or (not wide.rejected and wide.error < reg.error):
             merged.append(wide)
+            if fit is not None:
+                fits[reg.model] = fit
         else:
             merged.append(reg)
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
+def _with_verdict(rec: Recognition, fits: dict, models: list, method: str) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
     the (K, H) lookup may have kept the right contact out (curves straddling a seam
     between two patches of different curvature): the lookup is then widened by
     ``defaults.LOOKUP_WIDEN_SCALE`` and every model registered again before concluding.
+    ``fits`` holds the joint fits of several touches by model (empty for one touch).
     """
     by_name = {m.name: m for m in models}
-    n = int(rec.touch.n_points)
+    noise, n = _noise_and_points(rec)
     t0 = time.perf_counter()
     scores, noise = _score(rec)
     rec = _ordered(rec, scores)
@@ -284,7 +445,7 @@ def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
         # patches of different curvature may mismatch every vertex's (K, H) of the right
         # model, so every model is registered again with the window widened.
         t1 = time.perf_counter()
-        rec = _widened(rec, by_name, method)
+        rec = _widened(rec, fits, by_name, method)
         scores, noise = _score(rec)
         rec = _ordered(rec, scores)
         t_wide = time.perf_counter() - t1
@@ -296,24 +457,69 @@ def _with_verdict(rec: Recognition, models: list, method: str) -> Recognition:
     names = [s.model for s in rec.scores]
     probs = [s.probability for s in rec.scores]
     top = rec.scores[0] if rec.scores else None
-    v = decide(names, probs, None if top is None else top.rms, int(rec.touch.n_points), noise)
-    g = rec.geometry
-    if (
-        g.fit_to_noise > defaults.ROUGH_FIT_RATIO
-        and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
-    ):
-        cautions.append(
-            f"the curve fits leave {g.fit_to_noise:.3g} times the noise the samples show: "
-            "the curves may cross an edge, and the probabilities are less reliable"
-        )
+    v = decide(names, probs, None if top is None else top.rms, n, noise)
+    reason = v.reason
+    for k, g in enumerate(rec.geometries):
+        if (
+            g.fit_to_noise > defaults.ROUGH_FIT_RATIO
+            and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
+        ):
+            which = f"touch {k + 1}'s curve fits" if len(rec.geometries) > 1 else "the curve fits"
+            cautions.append(
+                f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
+                "the curves may cross an edge, and the probabilities are less reliable"
+            )
+    best_reg = rec.best
+    if best_reg is None:
+        per_touch = (None,) * len(rec.touches)
+    elif len(rec.touches) == 1:
+        per_touch = (best_reg.rms,)
+    else:
+        per_touch = fits[best_reg.model].touch_rms
+        if v.verdict == "unknown":
+            reason = _joint_unknown_reason(rec, fits, by_name, noise) or reason
     t_score += time.perf_counter() - t1
     return dataclasses.replace(
         rec,
         verdict=v.verdict,
         plausible=v.plausible,
         noise=float(noise),
-        reason=v.reason,
+        reason=reason,
         warnings=tuple(cautions),
         scoring_seconds=t_score,
         widened_seconds=t_wide,
+        touch_rms=per_touch,
+    )
+
+
+def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: float) -> str:
+    """Why several touches fit no model, when it is more than "not in the library"."""
+    points = np.array([g.point for g in rec.geometries])
+    span = float(np.max(np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)))
+    largest = max(float(np.linalg.norm(np.ptp(m.mesh.vertices, axis=0))) for m in models.values())
+    if span > largest:
+        return (
+            f"the touches' contacts lie up to {span:.4g} apart, farther than the largest "
+            f"model is long ({largest:.4g}): they cannot all be on one object of the library "
+            "(touches given in different frames, or the object moved)"
+        )
+    best = rec.best
+    if best is None:
+        return ""
+    fit = fits[best.model]
+    if fit.registered < len(rec.touches):
+        return ""
+    alone = []
+    for r, t, g in zip(fit.single, rec.touches, rec.geometries, strict=True):
+        own_noise = noise_estimate(g.fit_rms, g.noise_rms, g.half_length)
+        alone.append(
+            not r.rejected
+            and fit_p_value(r.rms, int(t.n_points), own_noise) >= defaults.UNKNOWN_P_VALUE
+        )
+    if not all(alone):
+        return ""
+    return (
+        f"each touch alone fits {best.model} to the noise, but no one rigid pose fits them "
+        f"all (joint RMS residual {best.rms:.3g}, {best.rms / noise:.3g} times the noise "
+        f"{noise:.3g}): the object moved between touches, or it is not in the library"
     )

@@ -1,0 +1,377 @@
+"""Several touches of one object: one rigid pose per model that fits them all.
+
+A robot touches an object that does not move several times, and every touch is given in
+one world frame, so a model's pose ``T_model_touch`` is the same for all of them. Per
+model, the touches are first registered alone (:func:`meshrec.register`, the paper's
+method); each registration's distinct pose hypotheses are poses of the whole object. The
+hypotheses that fit all the touches best are refined jointly, on every touch's points
+(:func:`meshrec.registration.refine.refine_rigid`), and the distinct results are the
+model's joint pose hypotheses.
+
+Not every touch has to be registered alone: the poses of the first touch, refined on all
+the points, usually already fit every touch to the noise, and the further registrations
+are only needed when they do not. :func:`register_touches` registers the first ``upto``
+touches; the recognition decides, per model and after every model's first pass, which
+models need the rest (see :func:`log_likelihood_bound`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from meshrec import defaults
+from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.touch import TouchData
+from meshrec.recognition.scoring import effective_points
+from meshrec.registration.objective import residuals
+from meshrec.registration.poses import PoseHypothesis, distinct_poses
+from meshrec.registration.refine import refine_rigid
+from meshrec.registration.register import Registration, StageTimes, register
+from meshrec.registration.transform import apply_transform
+
+__all__ = [
+    "JointFit",
+    "check_touch_sizes",
+    "joint_poses",
+    "log_likelihood_bound",
+    "pooled_noise",
+    "register_touches",
+    "touch_rms",
+]
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """One model's registration of several touches at one rigid pose.
+
+    Attributes
+    ----------
+    registration : Registration
+        The joint registration: ``error``, ``rms`` and ``n_points`` over every touch's
+        points, ``T_model_touch`` the best joint pose (touch frame = the world frame all
+        touches share), ``contact`` on the model where the first touch's common point
+        lies, ``poses`` the distinct joint poses (least RMS first); ``candidates``,
+        ``searches``, ``seconds`` and ``times`` add up the single-touch registrations and
+        the joint refinement. Rejected (``error`` None) when no touch registered alone
+        found a candidate.
+    single : tuple of Registration
+        The single-touch registrations run, in touch order (the first ``len(single)``
+        touches).
+    touch_rms : tuple of float
+        RMS point-to-surface distance of each touch at the best joint pose (empty when
+        rejected).
+    """
+
+    registration: Registration
+    single: tuple[Registration, ...] = field(repr=False)
+    touch_rms: tuple[float, ...] = ()
+
+    @property
+    def registered(self) -> int:
+        """How many touches were registered alone."""
+        return len(self.single)
+
+
+def check_touch_sizes(touches: Sequence[TouchData]) -> None:
+    """Refuse touches whose sizes cannot be those of one probe on one object.
+
+    Parameters
+    ----------
+    touches : sequence of TouchData
+        Two or more.
+
+    Raises
+    ------
+    ValueError
+        If one touch's bounding-box diagonal is more than
+        ``defaults.JOINT_MAX_SIZE_RATIO`` times another's (touches in different units).
+    """
+    sizes = [float(np.linalg.norm(np.ptp(t.points, axis=0))) for t in touches]
+    big, small = int(np.argmax(sizes)), int(np.argmin(sizes))
+    if sizes[small] > 0 and sizes[big] / sizes[small] > defaults.JOINT_MAX_SIZE_RATIO:
+        raise ValueError(
+            f"touches[{big}] is {sizes[big] / sizes[small]:.3g} times the size of "
+            f"touches[{small}] ({sizes[big]:.4g} against {sizes[small]:.4g}): touches of one "
+            "object in different units? Give every touch in the same unit"
+        )
+
+
+def pooled_noise(noises: Sequence[float], n_points: Sequence[int]) -> float:
+    """The noise level of several touches together: their variances averaged by points.
+
+    Parameters
+    ----------
+    noises : sequence of float
+        Each touch's noise estimate (standard deviation), > 0.
+    n_points : sequence of int
+        Each touch's number of points.
+
+    Returns
+    -------
+    float
+        ``sqrt(sum n_t sigma_t^2 / sum n_t)``; with one touch, its own noise.
+
+    Raises
+    ------
+    ValueError
+        If the lengths differ or are zero, a noise is not positive and finite, or a count
+        is not positive.
+    """
+    s = np.asarray(noises, dtype=np.float64)
+    n = np.asarray(n_points, dtype=np.float64)
+    if s.ndim != 1 or s.shape != n.shape or len(s) == 0:
+        raise ValueError(
+            f"noises and n_points must be 1-D of the same non-zero length, got {s.shape} "
+            f"and {n.shape}"
+        )
+    if np.any(~np.isfinite(s)) or np.any(s <= 0) or np.any(n < 1):
+        raise ValueError("noises must be positive and finite and n_points at least 1")
+    return float(np.sqrt((n * s**2).sum() / n.sum()))
+
+
+def touch_rms(model, touches: Sequence[TouchData], T_model_touch: np.ndarray) -> tuple:
+    """RMS point-to-surface distance of each touch at one pose.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    touches : sequence of TouchData
+    T_model_touch : (4, 4) float
+
+    Returns
+    -------
+    tuple of float
+        One per touch, model units.
+    """
+    points = np.vstack([t.points for t in touches])
+    values = residuals(model, apply_transform(T_model_touch, points)).values
+    ends = np.cumsum([t.n_points for t in touches])[:-1]
+    return tuple(float(np.sqrt(np.mean(v**2))) for v in np.split(values, ends))
+
+
+def joint_poses(
+    model,
+    touches: Sequence[TouchData],
+    seeds: Sequence[np.ndarray],
+    geometry: LocalGeometry,
+    *,
+    best: int = defaults.JOINT_REFINE_SEEDS,
+) -> tuple[PoseHypothesis, ...]:
+    """Refine poses of the object jointly on every touch's points; the distinct results.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    touches : sequence of TouchData
+        All in one frame.
+    seeds : sequence of (4, 4) float
+        Starting poses ``T_model_touch`` (for instance the single-touch registrations'
+        pose hypotheses).
+    geometry : LocalGeometry
+        The first touch's local geometry: its common point locates each pose's
+        ``contact`` on the model, and its half-length the tolerance of
+        :func:`~meshrec.registration.poses.distinct_poses`.
+    best : int
+        Seeds refined at most: those with the least joint RMS at their starting pose and
+        within ``defaults.JOINT_KEEP_RATIO`` of the least, first on about
+        ``defaults.JOINT_COARSE_POINTS`` of the points, then (those that come within
+        ``defaults.JOINT_KEEP_RATIO`` of the best coarse RMS) on all of them.
+
+    Returns
+    -------
+    tuple of PoseHypothesis
+        Distinct, least RMS first (``phi`` and ``run`` None: no chart is involved); empty
+        when there is no seed.
+
+    Raises
+    ------
+    ValueError
+        If ``best`` is not a positive integer.
+    """
+    if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
+        raise ValueError(f"best must be a positive integer, got {best!r}")
+    if len(seeds) == 0:
+        return ()
+    points = np.vstack([t.points for t in touches])
+    n = len(points)
+    stacked = np.vstack([apply_transform(T, points) for T in seeds])
+    start_rms = np.sqrt((residuals(model, stacked).values.reshape(len(seeds), n) ** 2).mean(1))
+    # Coarse to fine: each seed refined on every k-th point (most seeds are far off and
+    # take many steps), then the coarse results that come near the best one refined on
+    # all the points (a few steps).
+    # Only seeds that start near the best one: the others are far off (a wrong touch
+    # placement) and would take many steps to reach what the best reaches in a few.
+    stride = max(1, n // defaults.JOINT_COARSE_POINTS)
+    order = np.argsort(start_rms, kind="stable")[:best]
+    coarse = [
+        refine_rigid(model, points[::stride], seeds[k], max_iter=defaults.JOINT_COARSE_ITER)
+        for k in order
+        if start_rms[k] <= defaults.JOINT_KEEP_RATIO * start_rms[order[0]]
+    ]
+    least = min(c.rms for c in coarse)
+    out = []
+    for c in coarse:
+        if c.rms > defaults.JOINT_KEEP_RATIO * least:
+            continue
+        ref = refine_rigid(model, points, c.T_model_touch)
+        guess = apply_transform(ref.T_model_touch, geometry.point[None, :])
+        _, closest, face = model.surface.closest_points(guess)
+        out.append(
+            PoseHypothesis(
+                T_model_touch=ref.T_model_touch,
+                error=float(ref.error),
+                rms=float(ref.rms),
+                contact=closest[0],
+                normal=model.surface.interpolated_normals(closest, face)[0],
+                phi=None,
+                run=None,
+            )
+        )
+    out.sort(key=lambda p: p.rms)
+    return distinct_poses(out, float(geometry.half_length))
+
+
+def register_touches(
+    touches: Sequence[TouchData],
+    model,
+    geometries: Sequence[LocalGeometry],
+    *,
+    upto: int = 1,
+    previous: JointFit | None = None,
+    method: str = defaults.SEARCH_METHOD,
+    lookup_scale: float = 1.0,
+) -> JointFit:
+    """Register several touches of one object on one model at one rigid pose.
+
+    The first ``upto`` touches are registered alone (those already in ``previous`` are
+    not registered again); every distinct pose they give seeds :func:`joint_poses` on all
+    the touches. The result depends on this model and the touches only.
+
+    Parameters
+    ----------
+    touches : sequence of TouchData
+        Two or more, in one frame.
+    model : ModelIndex
+    geometries : sequence of LocalGeometry
+        The local geometry of each touch.
+    upto : int
+        Touches registered alone, 1 to ``len(touches)``.
+    previous : JointFit, optional
+        An earlier pass on the same touches and model, with the same ``lookup_scale``:
+        its single-touch registrations are reused.
+    method : {"lm", "steepest"}
+        The local-search optimiser.
+    lookup_scale : float
+        Factor widening the (K, H) lookup window.
+
+    Returns
+    -------
+    JointFit
+
+    Raises
+    ------
+    ValueError
+        If ``upto`` is outside 1 to ``len(touches)`` or ``geometries`` does not match
+        ``touches``.
+    """
+    if len(geometries) != len(touches):
+        raise ValueError(
+            f"geometries must hold one LocalGeometry per touch ({len(touches)}), got "
+            f"{len(geometries)}"
+        )
+    if not isinstance(upto, (int, np.integer)) or not 1 <= upto <= len(touches):
+        raise ValueError(f"upto must be an integer in [1, {len(touches)}], got {upto!r}")
+    t0 = time.perf_counter()
+    single = list(previous.single) if previous is not None else []
+    for k in range(len(single), upto):
+        single.append(
+            register(
+                touches[k], model, geometry=geometries[k], method=method, lookup_scale=lookup_scale
+            )
+        )
+    # Seeds: the joint poses already found (refined: they converge at once) and the poses
+    # of the touches newly registered alone.
+    done = len(previous.single) if previous is not None else 0
+    seeds = [p.T_model_touch for p in previous.registration.poses] if previous else []
+    seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
+    t1 = time.perf_counter()
+    poses = joint_poses(model, touches, seeds, geometries[0])
+    t_joint = time.perf_counter() - t1
+    times = StageTimes(refine=t_joint)
+    for reg in single:
+        times = times + reg.times
+    common = dict(
+        model=model.name,
+        path=str(model.path),
+        candidates=sum(r.candidates for r in single),
+        raw_hits=sum(r.raw_hits for r in single),
+        searches=sum(r.searches for r in single),
+        times=times,
+    )
+    if not poses:
+        reason = "; ".join(f"touch {k + 1}: {r.reason}" for k, r in enumerate(single))
+        reg = Registration(
+            error=None,
+            contact=None,
+            normal=None,
+            phi=None,
+            T_model_touch=None,
+            seconds=time.perf_counter() - t0,
+            reason=reason,
+            **common,
+        )
+        return JointFit(registration=reg, single=tuple(single))
+    best = poses[0]
+    reg = Registration(
+        error=best.error,
+        contact=best.contact,
+        normal=best.normal,
+        phi=None,
+        T_model_touch=best.T_model_touch,
+        seconds=time.perf_counter() - t0,
+        rms=best.rms,
+        n_points=int(sum(t.n_points for t in touches)),
+        poses=poses,
+        candidate_points=np.vstack([r.candidate_points for r in single]),
+        search_paths=tuple(p for r in single for p in r.search_paths),
+        **common,
+    )
+    return JointFit(
+        registration=reg,
+        single=tuple(single),
+        touch_rms=touch_rms(model, touches, best.T_model_touch),
+    )
+
+
+def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: float) -> float:
+    """The most log-likelihood a model could still reach on all the touches.
+
+    The joint fit's squared residuals add up over the touches, and no pose fits a touch
+    better than that touch's own best registration, so the joint log-likelihood is at
+    most the sum of the registered touches' own (the others' at most 0). A model whose
+    bound is already far below the best model's joint log-likelihood cannot become
+    plausible by registering its remaining touches.
+
+    Parameters
+    ----------
+    fit : JointFit
+    touches : sequence of TouchData
+    noise : float
+        The pooled noise estimate (:func:`pooled_noise`), > 0.
+
+    Returns
+    -------
+    float
+        ``-inf`` when a registered touch found no candidate.
+    """
+    total = 0.0
+    for touch, reg in zip(touches, fit.single, strict=False):
+        if reg.rejected:
+            return float("-inf")
+        n_eff = effective_points(touch.n_points)
+        total -= 0.5 * n_eff * (reg.rms / noise) ** 2
+    return total
