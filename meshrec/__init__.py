@@ -39,6 +39,8 @@ _WHERE = {
     "ModelLibrary": "meshrec.model.library",
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
+    "TouchAdvice": "meshrec.recognition.advice",
+    "next_touch": "meshrec.recognition.advice",
     "JointFit": "meshrec.recognition.joint",
     "register_touches": "meshrec.recognition.joint",
     "Recognition": "meshrec.recognition.recognize",
@@ -88,6 +90,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
+    from meshrec.recognition.advice import TouchAdvice, next_touch
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
@@ -131,6 +134,7 @@ __all__ = [
     "Searches",
     "SimulatedTouch",
     "StageTimes",
+    "TouchAdvice",
     "TouchData",
     "Truth",
     "Verdict",
@@ -144,6 +148,7 @@ __all__ = [
     "load_mesh",
     "localisation_error",
     "lookup_candidates",
+    "next_touch",
     "phi_brackets",
     "pose_hypotheses",
     "read_truth",

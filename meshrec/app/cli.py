@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 from meshrec import defaults
 from meshrec._version import __version__
+from meshrec.app.commands_advice import add_advice_parser
 from meshrec.app.commands_viz import add_viz_parsers
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = ["main", "recognition_to_json"]
 
-_VECTOR_OPTIONS = ("--contact", "--normal")
+_VECTOR_OPTIONS = ("--contact", "--normal", "--approach")
 
 
 def _vector(text: str):
@@ -146,6 +147,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--length", type=float, default=None, help="curve length (model units)")
     s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
     add_viz_parsers(sub, models_arg, touch_arg)
+    add_advice_parser(sub, models_arg, touch_arg)
     return p
 
 
@@ -321,6 +323,10 @@ def _run(args) -> int:
         from meshrec.app.commands_viz import run_viz
 
         return run_viz(args)
+    if args.command == "next-touch":
+        from meshrec.app.commands_advice import run_advice
+
+        return run_advice(args, sys.stdout)
     if args.command == "models":
         from meshrec.app.commands_models import run_models
 

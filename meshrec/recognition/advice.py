@@ -247,11 +247,12 @@ def next_touch(
     k = int(np.argmax(gain))
     where = f"touch at {_fmt(cand.world[k])} approaching along {_fmt(cand.approach[k])}"
     if note is None:
-        lead = (
-            f"recognised as {top}"
-            if recognition.verdict == "recognised"
-            else (f"only {top} is left to weigh")
-        )
+        if recognition.verdict == "recognised":
+            lead = f"recognised as {top}"
+        elif recognition.verdict == "unknown":
+            lead = f"no model fits the touches to the noise (unknown; best fit {top})"
+        else:
+            lead = f"only {top} is left to weigh"
         reason = f"{lead}; a {where} pins down its pose best"
     else:
         reason = f"{note}; a {where} pins down the pose of {top} best"
