@@ -77,7 +77,18 @@ def world(tmp_path_factory):
     rec = meshrec.recognize(sim.touch, library)
     files = tmp_path_factory.mktemp("touch")
     sim.touch.to_file(files / "touch.csv")
-    return dict(library=library, rec=rec, folder=folder, cache=cache, touch=files / "touch.csv")
+    second = meshrec.simulate_touch(
+        library["sphere"], contact=(0.0, -1.0, 0.0), rng=4, transform=False, length=0.4
+    )
+    second.touch.to_file(files / "second.csv")
+    return dict(
+        library=library,
+        rec=rec,
+        folder=folder,
+        cache=cache,
+        touch=files / "touch.csv",
+        second=files / "second.csv",
+    )
 
 
 def _score(name, probability, *poses):
@@ -199,8 +210,7 @@ def test_no_reachable_point(world):
 def test_open_mesh_side_follows_the_touch_normal_hint(world):
     rec = _recognition(world, "recognised", _score("bowl", 1.0, (np.eye(4), 1.0)))
     below = rec.touch.with_hints(normal=(0.0, 0.0, -1.0))  # touched from underneath
-    both = {"touches": (below,)} if hasattr(rec, "touches") else {}  # before multi-touch
-    rec = dataclasses.replace(rec, touch=below, **both)
+    rec = dataclasses.replace(rec, touch=below, touches=(below,))
     advice = next_touch(rec, world["library"], rng=0)
     assert advice.direction[2] > 0.0  # approached from below, moving up
 
@@ -254,6 +264,12 @@ def test_bad_recognitions(world):
         next_touch(noise, lib)
 
 
+def test_touches_and_geometries_must_pair(world):
+    rec = dataclasses.replace(_ambiguous(world), geometries=world["rec"].geometries * 2)
+    with pytest.raises(ValueError, match=r"one LocalGeometry per touch \(1\), got 2"):
+        next_touch(rec, world["library"])
+
+
 def test_real_recognition(world):
     """The advice runs on what recognize returns, as it is."""
     advice = next_touch(world["rec"], world["library"], rng=1)
@@ -263,11 +279,12 @@ def test_real_recognition(world):
 
 
 # ---------------------------------------------------------------------- command line
-def _cli(world, *extra):
+def _cli(world, *extra, second=False):
     return main(
         [
             "next-touch",
             str(world["touch"]),
+            *([str(world["second"])] if second else []),
             "--models",
             str(world["folder"]),
             "--cache-dir",
@@ -295,6 +312,14 @@ def test_cli_json(world, capsys):
     assert len(doc["direction"]) == 3
     assert _angle_deg(doc["direction"], [-1, 0, 0]) <= defaults.ADVICE_MAX_APPROACH_DEG + 1e-6
     assert doc["verdict"] in meshrec.VERDICTS
+
+
+def test_cli_two_touches(world, capsys):
+    assert _cli(world, "--json", "--seed", "3", second=True) == 0
+    doc = json.loads(capsys.readouterr().out)
+    point = np.array(doc["point"])
+    for contact in ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0)):  # not where it was touched
+        assert np.linalg.norm(point - contact) > 0.15
 
 
 def test_cli_text(world, capsys):

@@ -135,10 +135,7 @@ def run_advice(args, out) -> int:
             raise ValueError(f"touch file {shown}: {exc}") from exc
         touches.append(touch)
     library = inputs.library(args, folder)
-    if len(touches) == 1:
-        rec = recognize(touches[0], library, geometry=geometries[0])
-    else:
-        rec = recognize(touches, library, geometry=geometries)
+    rec = recognize(touches, library, geometry=geometries)
     advice = next_touch(rec, library, approach=approach, rng=args.seed)
     if args.json:
         out.write(json.dumps(advice_to_json(advice, rec.verdict)) + "\n")

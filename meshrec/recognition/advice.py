@@ -177,8 +177,9 @@ def next_touch(
         If ``approach`` is not a finite non-zero 3-vector, ``candidates`` is below 1 or
         above ``defaults.ADVICE_MAX_CANDIDATES``, ``rng`` is a negative seed, a model of
         the recognition is not in ``library``, a pose's ``T_model_touch`` is not a rigid
-        transform, a probability or weight is not in [0, 1], or the recognition's noise
-        is not a positive finite number while it has poses to weigh.
+        transform, a probability or weight is not in [0, 1], the recognition's noise
+        is not a positive finite number while it has poses to weigh, or its touches and
+        geometries do not pair up.
     """
     t0 = time.perf_counter()
     check_instance(recognition, Recognition, "recognition")
@@ -201,8 +202,14 @@ def next_touch(
             time.perf_counter() - t0,
         )
     noise = check_number(recognition.noise, "recognition.noise", positive=True)
-    touches = getattr(recognition, "touches", None) or (recognition.touch,)
-    geometries = getattr(recognition, "geometries", None) or (recognition.geometry,)
+    # every touch (a hand-made Recognition may leave the tuples empty: its first only)
+    touches = recognition.touches or (recognition.touch,)
+    geometries = recognition.geometries or (recognition.geometry,)
+    if len(geometries) != len(touches):
+        raise ValueError(
+            f"recognition.geometries must hold one LocalGeometry per touch "
+            f"({len(touches)}), got {len(geometries)}"
+        )
     hyps = _merge_equivalent([_with_side(h, touches, geometries) for h in hyps], noise)
     half = float(np.mean([g.half_length for g in geometries]))
     contacts = np.array([g.point for g in geometries], dtype=np.float64)
