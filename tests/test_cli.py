@@ -25,7 +25,17 @@ MATRIX = {
 #: The schema of ``meshrec recognize --json`` as the issue specifies it.
 SCHEMA = {
     "type": "object",
-    "required": ["verdict", "best", "plausible", "noise", "reason", "warnings", "touch", "ranking"],
+    "required": [
+        "verdict",
+        "best",
+        "plausible",
+        "noise",
+        "reason",
+        "warnings",
+        "touch",
+        "touches",
+        "ranking",
+    ],
     "additionalProperties": False,
     "properties": {
         "verdict": {"enum": ["recognised", "ambiguous", "unknown"]},
@@ -45,6 +55,25 @@ SCHEMA = {
                 "normal": VECTOR,
                 "K": {"type": "number"},
                 "H": {"type": "number"},
+            },
+        },
+        "touches": {
+            "type": "array",
+            "minItems": 1,
+            "items": {
+                "type": "object",
+                "required": ["file", "points", "curves", "contact", "normal", "K", "H", "rms"],
+                "additionalProperties": False,
+                "properties": {
+                    "file": {"type": ["string", "null"]},
+                    "points": {"type": "integer", "minimum": 15},
+                    "curves": {"type": "integer", "minimum": 3},
+                    "contact": VECTOR,
+                    "normal": VECTOR,
+                    "K": {"type": "number"},
+                    "H": {"type": "number"},
+                    "rms": {"type": ["number", "null"], "minimum": 0},
+                },
             },
         },
         "best": {"type": ["string", "null"]},

@@ -169,8 +169,10 @@ def recognition_to_json(
     -------
     dict
         Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``, ``warnings``,
-        ``touch`` and ``ranking`` (each entry with ``probability`` and ``poses``, a list
-        of ``{"transform": T_model_touch, "weight": w}``).
+        ``touch`` (the first touch), ``touches`` (one summary per touch, with ``rms``,
+        its RMS residual at the best model's pose) and ``ranking`` (each entry with
+        ``probability`` and ``poses``, a list of ``{"transform": T_model_touch,
+        "weight": w}``).
     """
     g = rec.geometry
     ranking = rec.ranking if top is None else rec.ranking[:top]
@@ -209,6 +211,19 @@ def recognition_to_json(
             "K": float(g.K),
             "H": float(g.H),
         },
+        "touches": [
+            {
+                "file": t.source,
+                "points": t.n_points,
+                "curves": len(t.curves),
+                "contact": tg.point.tolist(),
+                "normal": tg.normal.tolist(),
+                "K": float(tg.K),
+                "H": float(tg.H),
+                "rms": None if r is None else float(r),
+            }
+            for t, tg, r in zip(rec.touches, rec.geometries, rec.touch_rms, strict=True)
+        ],
         "ranking": [entry(r) for r in ranking],
     }
 
@@ -216,12 +231,19 @@ def recognition_to_json(
 def _print_table(rec: Recognition, top: int | None, out) -> None:
     import numpy as np
 
-    g = rec.geometry
-    out.write(
-        f"touch: {rec.touch.n_points} points on {len(rec.touch.curves)} curves; "
-        f"contact {np.array2string(g.point, precision=5)}, "
-        f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}; noise {rec.noise:.3g}\n"
-    )
+    several = len(rec.touches) > 1
+    for k, (t, g, r) in enumerate(zip(rec.touches, rec.geometries, rec.touch_rms, strict=True)):
+        label = f"touch {k + 1}" if several else "touch"
+        fit = f"; rms at the best pose {r:.3g}" if several and r is not None else ""
+        out.write(
+            f"{label}: {t.n_points} points on {len(t.curves)} curves; "
+            f"contact {np.array2string(g.point, precision=5)}, "
+            f"K = {g.K:.5g}, |H| = {abs(g.H):.5g}"
+            + (fit if several else f"; noise {rec.noise:.3g}")
+            + "\n"
+        )
+    if several:
+        out.write(f"{len(rec.touches)} touches of one object, noise {rec.noise:.3g}\n")
     ranking = rec.ranking if top is None else rec.ranking[:top]
     prob = rec.probabilities
     out.write(
@@ -264,20 +286,14 @@ def _run_recognize(args) -> int:
     units = inputs.model_units(folder, args.model_units)
     if args.batch:
         return _run_batch(args, names, folder, units)
-    if len(names) > 1:
-        raise ValueError(
-            f"recognize takes one touch file, got {len(names)}: use --batch to recognise "
-            "each of many files (JSON Lines)"
-        )
-    args.touch_file = names[0]
     # Every warning is printed as before and also kept for the JSON.
     caught: list = []
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            touch, geometry = inputs.touch_and_geometry(args, folder, units)
+            touches, geometries = inputs.touches_and_geometries(args, names, folder, units)
             library = inputs.library(args, folder)
-            rec = recognize(touch, library, method=args.method, geometry=geometry)
+            rec = recognize(touches, library, method=args.method, geometry=geometries)
     finally:
         shown = {}
         for w in caught:  # each text once, as the default filter would

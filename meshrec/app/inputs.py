@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import copy
 import sys
 import tempfile
 import warnings
@@ -23,6 +24,7 @@ __all__ = [
     "touch_and_geometry",
     "touch_in_units",
     "touch_units",
+    "touches_and_geometries",
 ]
 
 #: The touch-file argument that reads standard input, and the name it is given.
@@ -171,6 +173,40 @@ def touch_and_geometry(args, folder: Path, models_units: str | None):
         shown = STDIN_NAME if str(name) == STDIN else name
         raise ValueError(f"touch file {shown}: {exc}") from exc
     return touch, geometry
+
+
+def touches_and_geometries(args, names, folder: Path, models_units: str | None):
+    """Every touch named (``names``: one or more touch files), as
+    :func:`touch_and_geometry` reads one; ``--contact`` and ``--normal`` only with one.
+
+    Returns
+    -------
+    touches : list of TouchData
+    geometries : list of LocalGeometry
+
+    Raises
+    ------
+    ValueError
+        If a touch cannot be read or its curves allow no geometry estimate, ``-``
+        (standard input) is named more than once, or a hint is given with several touches.
+    """
+    names = list(names)
+    if sum(str(n) == STDIN for n in names) > 1:
+        raise ValueError("touch file - (standard input) can be given only once")
+    if len(names) > 1:
+        for option in ("contact", "normal"):
+            if getattr(args, option, None) is not None:
+                raise ValueError(
+                    f"--{option} gives one touch's hint: not with {len(names)} touch files"
+                )
+    touches, geometries = [], []
+    for name in names:
+        one = copy.copy(args)
+        one.touch_file = name
+        touch, geometry = touch_and_geometry(one, folder, models_units)
+        touches.append(touch)
+        geometries.append(geometry)
+    return touches, geometries
 
 
 def library(args, folder: Path, progress=None):

@@ -503,23 +503,26 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
             f"model is long ({largest:.4g}): they cannot all be on one object of the library "
             "(touches given in different frames, or the object moved)"
         )
-    best = rec.best
-    if best is None:
-        return ""
-    fit = fits[best.model]
-    if fit.registered < len(rec.touches):
-        return ""
-    alone = []
-    for r, t, g in zip(fit.single, rec.touches, rec.geometries, strict=True):
-        own_noise = noise_estimate(g.fit_rms, g.noise_rms, g.half_length)
-        alone.append(
-            not r.rejected
-            and fit_p_value(r.rms, int(t.n_points), own_noise) >= defaults.UNKNOWN_P_VALUE
-        )
-    if not all(alone):
-        return ""
-    return (
-        f"each touch alone fits {best.model} to the noise, but no one rigid pose fits them "
-        f"all (joint RMS residual {best.rms:.3g}, {best.rms / noise:.3g} times the noise "
-        f"{noise:.3g}): the object moved between touches, or it is not in the library"
-    )
+    for reg in rec.ranking:  # most probable first
+        fit = fits.get(reg.model)
+        if reg.rejected or fit is None or fit.registered < len(rec.touches):
+            continue
+        if all(
+            _fits_alone(r, t, g)
+            for r, t, g in zip(fit.single, rec.touches, rec.geometries, strict=True)
+        ):
+            return (
+                f"each touch alone fits {reg.model} to the noise, but no one rigid pose fits "
+                f"them all (joint RMS residual {reg.rms:.3g}, {reg.rms / noise:.3g} times the "
+                f"noise {noise:.3g}): the object moved between touches, or it is not in the "
+                "library"
+            )
+    return ""
+
+
+def _fits_alone(reg, touch: TouchData, geometry: LocalGeometry) -> bool:
+    """Whether a single-touch registration fits its touch to that touch's own noise."""
+    if reg.rejected:
+        return False
+    noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+    return fit_p_value(reg.rms, int(touch.n_points), noise) >= defaults.UNKNOWN_P_VALUE

@@ -1,0 +1,254 @@
+"""Several touches of one object: one pose per model fitted to all, scored on all the data."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+import meshrec
+from meshrec.app.cli import main
+from meshrec.recognition import joint
+from meshrec.registration.register import touch_geometry
+
+#: The half-turns about the axes: the rotations that map the ellipsoid onto itself.
+HALF_TURNS = [np.eye(3)] + [Rotation.from_rotvec(np.pi * e).as_matrix() for e in np.eye(3)]
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """A small ellipsoid (axes 1, 0.8, 0.5), a capsule and a torus, about 5k faces each."""
+    folder = tmp_path_factory.mktemp("models")
+    ellipsoid = trimesh.creation.icosphere(subdivisions=4)
+    ellipsoid.apply_scale([1.0, 0.8, 0.5])
+    ellipsoid.export(folder / "ellipsoid.stl")
+    trimesh.creation.capsule(height=1.0, radius=0.5, count=[48, 48]).export(folder / "capsule.stl")
+    trimesh.creation.torus(0.8, 0.3, major_sections=96, minor_sections=48).export(
+        folder / "torus.stl"
+    )
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path_factory.mktemp("cache"))
+
+
+def _world(rng) -> np.ndarray:
+    """A seeded rigid motion: T_world_model."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+    return T
+
+
+def _touches(model, T_world_model, rng, n=3, length=0.3, noise=0.002):
+    """``n`` simulated touches of one object at one pose, in the world frame."""
+    sims = [
+        meshrec.simulate_touch(model, length=length, noise=noise, rng=rng, transform=False)
+        for _ in range(n)
+    ]
+    return [s.touch.transformed(T_world_model) for s in sims], sims
+
+
+@pytest.fixture(scope="module")
+def three_on_ellipsoid(library):
+    rng = np.random.default_rng(3)
+    T_world_model = _world(rng)
+    touches, sims = _touches(library["ellipsoid"], T_world_model, rng)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touches, library)
+    return touches, sims, T_world_model, rec
+
+
+def test_three_touches_recognise_the_object_at_its_pose(three_on_ellipsoid):
+    touches, _sims, T_world_model, rec = three_on_ellipsoid
+    assert rec.verdict == "recognised"
+    assert rec.best.model == "ellipsoid"
+    assert len(rec.touches) == 3
+    assert len(rec.geometries) == 3
+    assert len(rec.touch_rms) == 3
+    assert rec.best.n_points == sum(t.n_points for t in touches)
+    # The pose, modulo the ellipsoid's half-turns: the true pose maps world to model.
+    T_true = np.linalg.inv(T_world_model)
+    found = rec.best.T_model_touch
+    angle = min(
+        Rotation.from_matrix(S @ found[:3, :3] @ T_true[:3, :3].T).magnitude() for S in HALF_TURNS
+    )
+    shift = min(np.linalg.norm(S @ found[:3, 3] - T_true[:3, 3]) for S in HALF_TURNS)
+    assert np.degrees(angle) < 1.0
+    assert shift < 0.01
+    # every touch fits to about the noise (uniform +-0.002: deviation 0.0012)
+    assert max(rec.touch_rms) < 0.003
+
+
+def test_touch_rms_is_each_touch_at_the_reported_pose(library, three_on_ellipsoid):
+    touches, _, _, rec = three_on_ellipsoid
+    model = library["ellipsoid"]
+    for t, r in zip(touches, rec.touch_rms, strict=True):
+        y = t.points @ rec.best.T_model_touch[:3, :3].T + rec.best.T_model_touch[:3, 3]
+        d, _, _ = model.surface.closest_points(y)
+        # the residual is the distance to the smooth surface: close to the facet distance
+        assert r == pytest.approx(np.sqrt(np.mean(d**2)), rel=0.25)
+
+
+def test_joint_fit_beats_or_equals_each_single_touch_pose(library, three_on_ellipsoid):
+    """The joint pose fits all the points at least as well as any single touch's pose."""
+    touches, _, _, _rec = three_on_ellipsoid
+    model = library["ellipsoid"]
+    geometries = [touch_geometry(t) for t in touches]
+    fit = joint.register_touches(touches, model, geometries, upto=3)
+    points = np.vstack([t.points for t in touches])
+    for single in fit.single:
+        for pose in single.poses:
+            y = points @ pose.T_model_touch[:3, :3].T + pose.T_model_touch[:3, 3]
+            d, _, _ = model.surface.closest_points(y)
+            assert fit.registration.rms <= np.sqrt(np.mean(d**2)) * 1.001
+    assert fit.registered == 3
+
+
+def test_one_touch_in_a_list_is_the_single_touch_recognition(library, three_on_ellipsoid):
+    touches, *_ = three_on_ellipsoid
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = meshrec.recognize(touches[0], library)
+        b = meshrec.recognize([touches[0]], library)
+    assert [r.model for r in a.ranking] == [r.model for r in b.ranking]
+    assert a.best.rms == b.best.rms
+    assert b.touches == (touches[0],)
+
+
+def test_the_models_order_changes_nothing(library, three_on_ellipsoid):
+    touches, _, _, rec = three_on_ellipsoid
+    models = [library[n] for n in reversed(library.names)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = meshrec.recognize(touches, models)
+    assert [r.model for r in again.ranking] == [r.model for r in rec.ranking]
+    assert again.probabilities == pytest.approx(rec.probabilities)
+
+
+def test_an_object_that_moved_between_touches_is_unknown(library):
+    rng = np.random.default_rng(11)
+    T_world_model = _world(rng)
+    touches, _ = _touches(library["ellipsoid"], T_world_model, rng, n=2)
+    moved = np.eye(4)
+    moved[:3, :3] = Rotation.from_rotvec([0.0, 0.0, 0.6]).as_matrix()
+    moved[:3, 3] = [0.3, -0.2, 0.1]
+    touches[1] = touches[1].transformed(moved)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touches, library)
+    assert rec.verdict == "unknown"
+    assert rec.plausible == ()
+    assert "moved" in rec.reason
+
+
+def test_touches_too_far_apart_for_any_model_are_unknown(library):
+    rng = np.random.default_rng(12)
+    touches, _ = _touches(library["torus"], _world(rng), rng, n=2)
+    far = np.eye(4)
+    far[:3, 3] = [50.0, 0.0, 0.0]
+    touches[1] = touches[1].transformed(far)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touches, library)
+    assert rec.verdict == "unknown"
+    assert "farther than the largest model" in rec.reason
+
+
+def test_touches_in_different_units_are_refused(library):
+    rng = np.random.default_rng(13)
+    touches, _ = _touches(library["torus"], _world(rng), rng, n=2)
+    scale = np.diag([1000.0, 1000.0, 1000.0, 1.0])
+    mm = meshrec.TouchData(curves=[c @ scale[:3, :3] for c in touches[1].curves])
+    with pytest.raises(ValueError, match=r"touches\[1\] is 1[.0-9]*e\+03 times the size of"):
+        meshrec.recognize([touches[0], mm], library)
+
+
+@pytest.mark.parametrize(
+    ("touch", "error", "message"),
+    [
+        ([], ValueError, "touch must hold at least one TouchData"),
+        ("touch.csv", TypeError, "touch must be a TouchData or a sequence"),
+        (3, TypeError, "touch must be a TouchData or a sequence"),
+    ],
+)
+def test_recognize_refuses_bad_touch_lists(library, touch, error, message):
+    with pytest.raises(error, match=message):
+        meshrec.recognize(touch, library)
+
+
+def test_recognize_names_a_bad_entry_and_geometry(library, three_on_ellipsoid):
+    touches, *_ = three_on_ellipsoid
+    with pytest.raises(TypeError, match=r"touch\[1\]"):
+        meshrec.recognize([touches[0], "x"], library)
+    with pytest.raises(ValueError, match=r"geometry must hold one LocalGeometry per touch \(2\)"):
+        meshrec.recognize(touches[:2], library, geometry=[touch_geometry(touches[0])])
+    with pytest.raises(TypeError, match=r"geometry\[0\]"):
+        meshrec.recognize(touches[:1], library, geometry=["x"])
+    with pytest.raises(TypeError, match="geometry must be a LocalGeometry"):
+        meshrec.recognize(touches[:1], library, geometry=3)
+
+
+def test_register_touches_and_helpers_refuse_bad_arguments(library, three_on_ellipsoid):
+    touches, *_ = three_on_ellipsoid
+    model = library["ellipsoid"]
+    g = [touch_geometry(t) for t in touches]
+    with pytest.raises(ValueError, match=r"upto must be an integer in \[1, 3\], got 0"):
+        joint.register_touches(touches, model, g, upto=0)
+    with pytest.raises(ValueError, match=r"one LocalGeometry per touch \(3\), got 2"):
+        joint.register_touches(touches, model, g[:2])
+    with pytest.raises(ValueError, match="best must be a positive integer"):
+        joint.joint_poses(model, touches, [np.eye(4)], g[0], best=0)
+    with pytest.raises(ValueError, match="same non-zero length"):
+        joint.pooled_noise([0.1, 0.2], [10])
+    with pytest.raises(ValueError, match="positive and finite"):
+        joint.pooled_noise([0.0], [10])
+
+
+def test_pooled_noise_averages_variances_by_points():
+    assert joint.pooled_noise([0.1], [7]) == pytest.approx(0.1)
+    assert joint.pooled_noise([1.0, 2.0], [1, 3]) == pytest.approx(np.sqrt((1 + 12) / 4))
+
+
+def test_joint_poses_from_the_true_pose_stay_there(library):
+    """A brute-force twin: from the true pose, the joint refinement moves by the noise only."""
+    rng = np.random.default_rng(21)
+    T_world_model = _world(rng)
+    model = library["ellipsoid"]
+    touches, _ = _touches(model, T_world_model, rng, n=2, noise=0.0005)
+    T_true = np.linalg.inv(T_world_model)
+    poses = joint.joint_poses(model, touches, [T_true], touch_geometry(touches[0]))
+    assert len(poses) == 1
+    points = np.vstack([t.points for t in touches])
+    moved = (points @ poses[0].T_model_touch[:3, :3].T + poses[0].T_model_touch[:3, 3]) - (
+        points @ T_true[:3, :3].T + T_true[:3, 3]
+    )
+    # (the 5k-face mesh, not the noise, sets the scale: its facets move the optimum)
+    assert np.linalg.norm(moved, axis=1).max() < 0.01
+    assert poses[0].rms < 0.001
+
+
+def test_cli_recognises_several_touch_files(library, tmp_path, capsys, monkeypatch):
+    rng = np.random.default_rng(5)
+    touches, _ = _touches(library["torus"], _world(rng), rng, n=3)
+    names = []
+    for k, t in enumerate(touches):
+        path = tmp_path / f"t{k}.csv"
+        t.to_file(path)
+        names.append(str(path))
+    folder = library["torus"].path.parent
+    cache = tmp_path / "cache"
+    code = main(["recognize", *names, "--models", str(folder), "--cache-dir", str(cache), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert doc["best"] == "torus"
+    assert [t["file"] for t in doc["touches"]] == names
+    assert all(t["rms"] < 0.003 for t in doc["touches"])
+    assert doc["touch"]["file"] == names[0]
+    code = main(["recognize", *names, "--models", str(folder), "--cache-dir", str(cache)])
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "touch 3:" in text
+    assert "3 touches of one object" in text
