@@ -1,0 +1,285 @@
+"""Several touches and the active loop (issue 12): how many touches to a decision?
+
+For each generated shape set (``meshrec.bench.shape_set``, nine unit-size smooth shapes)
+and each shape, seeded trials of an object placed at a random pose in the world:
+
+- three touches at random places (curves 0.3 long, noise 0.002): is the joint answer right,
+  ``recognised``, and how far is the pose (the touches' points mapped by the found and by
+  the true pose; bumped spheres are the asymmetric shapes, the others have symmetries that
+  a pose error would count)? Recognition time with three touches over one.
+- the active loop: a first touch at random, then touch where ``meshrec.next_touch``
+  advises (the simulated probe moves along the advised ray and touches where it first
+  meets the true object) until the verdict is ``recognised`` or six touches; against the
+  same loop touching at random places. Touches to a decision and the final accuracy.
+
+Writes a Markdown report and a picture of one active run (touches numbered on the model).
+
+    .venv/bin/python tools/touches.py --sets 5 --trials 2 --out reports/touches.md \
+        --figure docs/images/active_loop.png
+
+Uses only meshrec's public API.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import statistics
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+import meshrec
+from meshrec import bench
+from meshrec.sim.probe import first_hit
+
+LENGTH, NOISE, MAX_TOUCHES = 0.3, 0.002, 6
+
+
+def _world(rng) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+    return T
+
+
+def _touch(model, T_world_model, rng, contact=None):
+    sim = meshrec.simulate_touch(
+        model, length=LENGTH, noise=NOISE, rng=rng, transform=False, contact=contact
+    )
+    return sim.touch.transformed(T_world_model)
+
+
+def _recognise(touches, library):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t0 = time.perf_counter()
+        rec = meshrec.recognize(touches if len(touches) > 1 else touches[0], library)
+    return rec, time.perf_counter() - t0
+
+
+def _pose_error(rec, touches, T_world_model) -> float:
+    """Largest distance between the touches' points mapped by the found and the true pose."""
+    if rec.best is None:
+        return float("inf")
+    points = np.vstack([t.points for t in touches])
+    T = rec.best.T_model_touch
+    T_true = np.linalg.inv(T_world_model)
+    a = points @ T[:3, :3].T + T[:3, 3]
+    b = points @ T_true[:3, :3].T + T_true[:3, 3]
+    return float(np.linalg.norm(a - b, axis=1).max())
+
+
+def _advised_touch(rec, library, model, T_world_model, rng):
+    """Follow the advice: the probe moves along the advised ray onto the true object."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        advice = meshrec.next_touch(rec, library, rng=rng)
+    if advice.point is None:
+        return None, advice
+    T = np.linalg.inv(T_world_model)
+    point = T[:3, :3] @ advice.point + T[:3, 3]
+    direction = T[:3, :3] @ advice.direction
+    standoff = float(np.linalg.norm(np.ptp(model.mesh.vertices, axis=0)))
+    hit = first_hit(model.mesh.vertices, model.mesh.faces, point - standoff * direction, direction)
+    if hit is None:  # the ray misses the true object: the robot touches near the point
+        hit = point
+    try:
+        return _touch(model, T_world_model, rng, contact=hit), advice
+    except ValueError:  # no curve through that contact (an open patch's rim): at random
+        return None, advice
+
+
+def _loop(library, model, T_world_model, rng, active: bool):
+    touches = [_touch(model, T_world_model, rng)]
+    advice_times = []
+    while True:
+        rec, _ = _recognise(touches, library)
+        if rec.verdict == "recognised" or len(touches) >= MAX_TOUCHES:
+            return rec, touches, advice_times
+        nxt = None
+        if active:
+            t0 = time.perf_counter()
+            nxt, _ = _advised_touch(rec, library, model, T_world_model, rng)
+            advice_times.append(time.perf_counter() - t0)
+        touches.append(nxt if nxt is not None else _touch(model, T_world_model, rng))
+
+
+def run(set_seeds, trials, cache_dir, log):
+    rows = []
+    picture = None
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in set_seeds:
+            folder = Path(tmp) / f"set{seed}"
+            bench.write_shapes(bench.shape_set(9, seed=seed), folder)
+            library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache_dir)
+            rng = np.random.default_rng(500 + seed)
+            for _trial in range(trials):
+                for name in library.names:
+                    model = library[name]
+                    T = _world(rng)
+                    three = [_touch(model, T, rng) for _ in range(3)]
+                    one, t1 = _recognise(three[:1], library)
+                    rec3, t3 = _recognise(three, library)
+                    act, act_touches, adv_t = _loop(library, model, T, rng, active=True)
+                    ran, ran_touches, _ = _loop(library, model, T, rng, active=False)
+                    row = {
+                        "set": seed,
+                        "shape": name,
+                        "family": name.split("_")[0],
+                        "right3": rec3.best is not None and rec3.best.model == name,
+                        "recognised3": rec3.verdict == "recognised",
+                        "pose3": _pose_error(rec3, three, T),
+                        "t1": t1,
+                        "t3": t3,
+                        "right1": one.best is not None and one.best.model == name,
+                        "active_n": len(act_touches),
+                        "active_right": act.best is not None and act.best.model == name,
+                        "active_decided": act.verdict == "recognised",
+                        "random_n": len(ran_touches),
+                        "random_right": ran.best is not None and ran.best.model == name,
+                        "random_decided": ran.verdict == "recognised",
+                        "advice_s": adv_t,
+                    }
+                    rows.append(row)
+                    if picture is None and len(act_touches) >= 2 and row["active_right"]:
+                        picture = (model, act_touches, T, name)
+                    log(
+                        f"set {seed} {name:<22} 3: {rec3.verdict[:5]} {row['right3']!s:<5} "
+                        f"pose {row['pose3']:.4f} x{t3 / t1:.2f} | active {len(act_touches)} "
+                        f"{row['active_right']!s:<5} random {len(ran_touches)} "
+                        f"{row['random_right']!s:<5}"
+                    )
+    return rows, picture
+
+
+def _pct(k, n) -> str:
+    return f"{k}/{n} = {100.0 * k / max(n, 1):.1f}%"
+
+
+def report(rows, args, seconds) -> str:
+    n = len(rows)
+    right3 = sum(r["right3"] for r in rows)
+    rec3 = sum(r["recognised3"] for r in rows)
+    asym = [r["pose3"] for r in rows if r["family"] == "bumped"]
+    ratios = [r["t3"] / r["t1"] for r in rows]
+    act_n = [r["active_n"] for r in rows]
+    ran_n = [r["random_n"] for r in rows]
+    adv = [t for r in rows for t in r["advice_s"]]
+    lines = [
+        "# Several touches and the active loop",
+        "",
+        f"Command: `python tools/touches.py --sets {' '.join(map(str, args.sets))} "
+        f"--trials {args.trials}`  ",
+        f"Machine: {platform.machine()}, Python {platform.python_version()}, "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; shared 2-core machine; "
+        f"{seconds / 60:.1f} min.",
+        "",
+        f"Shape sets {args.sets} (nine generated unit-size shapes each, "
+        "`meshrec.bench.shape_set`), every shape of the set in the library; curves "
+        f"{LENGTH} long, noise +-{NOISE} (uniform); {n} objects placed at random poses.",
+        "",
+        "## Three touches at random places",
+        "",
+        "| measure | value | target |",
+        "|---|---|---|",
+        f"| right (top model) | {_pct(right3, n)} | >= 98% |",
+        f"| `recognised` | {_pct(rec3, n)} | >= 90% |",
+        f"| one touch alone: right | {_pct(sum(r['right1'] for r in rows), n)} | - |",
+        "| pose error on the asymmetric shapes (bumped spheres), largest point "
+        f"displacement: median / max | {_fmt_med_max(asym)} | <= 0.01 |",
+        f"| time with three touches / one touch: median (max) | {statistics.median(ratios):.2f}"
+        f" ({max(ratios):.2f}) | <= 2 |",
+        "",
+        "## Active loop against random touches (until `recognised`, at most "
+        f"{MAX_TOUCHES} touches)",
+        "",
+        "| strategy | mean touches | median | decided (`recognised`) | final answer right |",
+        "|---|---|---|---|---|",
+        f"| advised (`next_touch`) | {np.mean(act_n):.2f} | {statistics.median(act_n):g} | "
+        f"{_pct(sum(r['active_decided'] for r in rows), n)} | "
+        f"{_pct(sum(r['active_right'] for r in rows), n)} |",
+        f"| random | {np.mean(ran_n):.2f} | {statistics.median(ran_n):g} | "
+        f"{_pct(sum(r['random_decided'] for r in rows), n)} | "
+        f"{_pct(sum(r['random_right'] for r in rows), n)} |",
+        "",
+        f"Touches advised over random: {np.mean(act_n) / np.mean(ran_n):.2f} (target <= 0.75). "
+        f"`next_touch` time: median {statistics.median(adv) if adv else float('nan'):.2f} s, "
+        f"max {max(adv) if adv else float('nan'):.2f} s over {len(adv)} calls (nine models).",
+        "",
+        "## Per family",
+        "",
+        "| family | objects | 3 touches right | recognised | active touches | random touches |",
+        "|---|---|---|---|---|---|",
+    ]
+    for fam in sorted({r["family"] for r in rows}):
+        fr = [r for r in rows if r["family"] == fam]
+        lines.append(
+            f"| {fam} | {len(fr)} | {sum(r['right3'] for r in fr)} | "
+            f"{sum(r['recognised3'] for r in fr)} | {np.mean([r['active_n'] for r in fr]):.2f} | "
+            f"{np.mean([r['random_n'] for r in fr]):.2f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _fmt_med_max(values) -> str:
+    if not values:
+        return "-"
+    return f"{statistics.median(values):.4f} / {max(values):.4f} ({len(values)} objects)"
+
+
+def figure(picture, path: Path) -> None:
+    """The active run's touches, numbered, on the model (model coordinates)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    model, touches, T_world_model, name = picture
+    T = np.linalg.inv(T_world_model)
+    V = np.asarray(model.mesh.vertices)
+    F = np.asarray(model.mesh.faces)
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot_trisurf(V[:, 0], V[:, 1], V[:, 2], triangles=F, color="0.85", alpha=0.35, lw=0)
+    for k, touch in enumerate(touches, start=1):
+        for c in touch.curves:
+            p = c @ T[:3, :3].T + T[:3, 3]
+            ax.plot(p[:, 0], p[:, 1], p[:, 2], color=f"C{k}", lw=2)
+        mid = touch.curves[0][len(touch.curves[0]) // 2] @ T[:3, :3].T + T[:3, 3]
+        ax.text(*mid, f" {k}", color="k", fontsize=13, weight="bold")
+    ax.set_title(f"active loop on {name}: touch 1 at random, then as advised")
+    ax.set_box_aspect(np.ptp(V, axis=0))
+    ax.set_axis_off()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sets", type=int, nargs="+", default=[5], help="shape-set seeds")
+    p.add_argument("--trials", type=int, default=1, help="objects per shape per set")
+    p.add_argument("--cache-dir", default=None)
+    p.add_argument("--out", type=Path, default=None, help="Markdown report")
+    p.add_argument("--figure", type=Path, default=None, help="PNG of one active run")
+    args = p.parse_args(argv)
+    t0 = time.perf_counter()
+    rows, picture = run(args.sets, args.trials, args.cache_dir, lambda s: print(s, flush=True))
+    text = report(rows, args, time.perf_counter() - t0)
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text)
+    if args.figure is not None and picture is not None:
+        figure(picture, args.figure)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
