@@ -330,6 +330,10 @@ JOINT_KEEP_RATIO = 1.5
 #: touches: every further touch can only lower its likelihood (the explicit, order-free
 #: pruning step after the per-model work; e^-14 ~ 1e-6, far below any plausible set).
 JOINT_PRUNE_LOG_RATIO = -14.0
+#: Local searches of a further touch registered alone (the first has LOCAL_SEARCHES): its
+#: poses only seed the joint refinement, where the other touches pin the pose down. Half,
+#: for time (three touches cost about twice one: reports/touches.md); not tuned further.
+JOINT_EXTRA_SEARCHES = 4
 #: Touches of one object whose curves' sizes (bounding-box diagonals) differ by more than
 #: this factor are refused as given in different units (millimetres and metres differ by
 #: 1000; real touches of one probe differ by a few times at most).

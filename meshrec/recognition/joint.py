@@ -17,6 +17,7 @@ models need the rest (see :func:`log_likelihood_bound`).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from meshrec.registration.transform import apply_transform
 __all__ = [
     "JointFit",
     "check_touch_sizes",
+    "first_touch_fit",
     "joint_poses",
     "log_likelihood_bound",
     "pooled_noise",
@@ -248,7 +250,8 @@ def register_touches(
     """Register several touches of one object on one model at one rigid pose.
 
     The first ``upto`` touches are registered alone (those already in ``previous`` are
-    not registered again); every distinct pose they give seeds :func:`joint_poses` on all
+    not registered again; touches after the first with ``defaults.JOINT_EXTRA_SEARCHES``
+    local searches); every distinct pose they give seeds :func:`joint_poses` on all
     the touches. The result depends on this model and the touches only.
 
     Parameters
@@ -288,19 +291,68 @@ def register_touches(
     t0 = time.perf_counter()
     single = list(previous.single) if previous is not None else []
     for k in range(len(single), upto):
+        # The first touch is registered as one touch alone would be; the others only seed
+        # the joint refinement, where the touches registered before constrain the pose.
+        searches = defaults.LOCAL_SEARCHES if k == 0 else defaults.JOINT_EXTRA_SEARCHES
         single.append(
             register(
-                touches[k], model, geometry=geometries[k], method=method, lookup_scale=lookup_scale
+                touches[k],
+                model,
+                geometry=geometries[k],
+                method=method,
+                lookup_scale=lookup_scale,
+                searches=searches,
             )
         )
-    # Seeds: the joint poses already found (refined: they converge at once) and the poses
+    # Seeds: the joint poses already found (refined ones converge at once) and the poses
     # of the touches newly registered alone.
     done = len(previous.single) if previous is not None else 0
     seeds = [p.T_model_touch for p in previous.registration.poses] if previous else []
     seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
     t1 = time.perf_counter()
     poses = joint_poses(model, touches, seeds, geometries[0])
-    t_joint = time.perf_counter() - t1
+    return _fit(model, touches, single, poses, time.perf_counter() - t1, t0)
+
+
+def first_touch_fit(touches: Sequence[TouchData], model, first: Registration) -> JointFit:
+    """The first touch's registration alone, its poses taken as they are for every touch.
+
+    No refinement: each pose of ``first`` is scored on all the touches' points. It is the
+    starting point of :func:`register_touches` (``previous=``), and the final fit of a
+    model that cannot become plausible (see :func:`log_likelihood_bound`).
+
+    Parameters
+    ----------
+    touches : sequence of TouchData
+    model : ModelIndex
+    first : Registration
+        ``register(touches[0], model)``.
+
+    Returns
+    -------
+    JointFit
+    """
+    t0 = time.perf_counter()
+    poses = []
+    if first.poses:
+        points = np.vstack([t.points for t in touches])
+        n = len(points)
+        stacked = np.vstack([apply_transform(p.T_model_touch, points) for p in first.poses])
+        values = residuals(model, stacked).values.reshape(len(first.poses), n)
+        rms = np.sqrt((values**2).mean(axis=1))
+        error = np.abs(values).mean(axis=1)
+        poses = sorted(
+            (
+                dataclasses.replace(p, rms=float(r), error=float(e))
+                for p, r, e in zip(first.poses, rms, error, strict=True)
+            ),
+            key=lambda p: p.rms,
+        )
+    return _fit(model, touches, [first], tuple(poses), time.perf_counter() - t0, t0)
+
+
+def _fit(model, touches, single, poses, t_joint: float, t0: float) -> JointFit:
+    """The JointFit the single registrations and the joint poses make."""
     times = StageTimes(refine=t_joint)
     for reg in single:
         times = times + reg.times
@@ -335,7 +387,7 @@ def register_touches(
         seconds=time.perf_counter() - t0,
         rms=best.rms,
         n_points=int(sum(t.n_points for t in touches)),
-        poses=poses,
+        poses=tuple(poses),
         candidate_points=np.vstack([r.candidate_points for r in single]),
         search_paths=tuple(p for r in single for p in r.search_paths),
         **common,

@@ -17,6 +17,7 @@ from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.recognition.joint import (
     check_touch_sizes,
+    first_touch_fit,
     log_likelihood_bound,
     pooled_noise,
     register_touches,
@@ -284,8 +285,10 @@ def _ranked(rec: Recognition, results) -> Recognition:
 def _rank_joint(touches, models, method, progress, geometries):
     """Several touches: every model fitted at one pose to all, the needed touches alone.
 
-    Per model (independently of the others) the first touch is registered alone and its
-    poses refined on every touch. Then, touch by touch, an explicit order-free step over
+    Per model (independently of the others) the first touch is registered alone; its
+    poses are refined on every touch, most promising model first, except for the models
+    whose first touch alone already fits far worse than the best joint fit so far. Then,
+    touch by touch, an explicit order-free step over
     all the models' fits so far: a model whose joint fit is worse than the noise allows
     registers its next touch alone too, unless even its best conceivable fit
     (:func:`~meshrec.recognition.joint.log_likelihood_bound`) is already far below the
@@ -309,11 +312,28 @@ def _rank_joint(touches, models, method, progress, geometries):
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    fits = {}
+    firsts = {}
     for i, model in enumerate(models):
         if progress is not None:
             progress(i, len(models), model.name)
-        fits[model.name] = register_touches(touches, model, geometries, upto=1, method=method)
+        first = register(touches[0], model, geometry=geometries[0], method=method)
+        firsts[model.name] = first_touch_fit(touches, model, first)
+    # The joint refinement, most promising model first (by the first touch's fit, then the
+    # name: an order of the data, not of the library). A model whose first touch alone
+    # already fits far worse than the best joint fit so far keeps its first touch's poses
+    # unrefined: refining cannot make it plausible.
+    order = sorted(
+        models, key=lambda m: (-log_likelihood_bound(firsts[m.name], touches, noise), m.name)
+    )
+    fits = {}
+    leader = -np.inf
+    for model in order:
+        fit = firsts[model.name]
+        bound = log_likelihood_bound(fit, touches, noise)
+        if not fit.registration.rejected and bound >= leader + defaults.JOINT_PRUNE_LOG_RATIO:
+            fit = register_touches(touches, model, geometries, upto=1, previous=fit, method=method)
+            leader = max(leader, float(log_likelihoods([fit.registration.rms], n, noise)[0]))
+        fits[model.name] = fit
     # Touch by touch, over every model's fits so far (an order-free step): a model whose
     # joint fit is worse than the noise allows registers its next touch alone too, unless
     # even its best conceivable fit is already far below the best model's.
