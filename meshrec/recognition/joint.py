@@ -29,7 +29,7 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.scoring import effective_points
 from meshrec.registration.objective import residuals
-from meshrec.registration.poses import PoseHypothesis, distinct_poses
+from meshrec.registration.poses import PoseHypothesis, distinct_poses, refined_pose
 from meshrec.registration.refine import refine_rigid
 from meshrec.registration.register import Registration, StageTimes, register
 from meshrec.registration.transform import apply_transform
@@ -220,19 +220,7 @@ def joint_poses(
         if c.rms > defaults.JOINT_KEEP_RATIO * least:
             continue
         ref = refine_rigid(model, points, c.T_model_touch)
-        guess = apply_transform(ref.T_model_touch, geometry.point[None, :])
-        _, closest, face = model.surface.closest_points(guess)
-        out.append(
-            PoseHypothesis(
-                T_model_touch=ref.T_model_touch,
-                error=float(ref.error),
-                rms=float(ref.rms),
-                contact=closest[0],
-                normal=model.surface.interpolated_normals(closest, face)[0],
-                phi=None,
-                run=None,
-            )
-        )
+        out.append(refined_pose(model, ref, geometry.point))
     out.sort(key=lambda p: p.rms)
     return distinct_poses(out, float(geometry.half_length))
 

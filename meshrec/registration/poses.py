@@ -28,6 +28,7 @@ __all__ = [
     "distinct_poses",
     "pose_hypotheses",
     "refine_searches",
+    "refined_pose",
 ]
 
 
@@ -80,6 +81,36 @@ class PoseHypothesis:
     normal: np.ndarray = field(repr=False)
     phi: float | None
     run: int | None
+
+
+def refined_pose(model, refinement: Refinement, point: np.ndarray) -> PoseHypothesis:
+    """A pose refined from a given one (no chart), as a hypothesis.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    refinement : Refinement
+        From :func:`meshrec.registration.refine.refine_rigid`.
+    point : (3,) float
+        The data's common point, touch frame: placed by the pose, its closest surface
+        point is the hypothesis's ``contact``.
+
+    Returns
+    -------
+    PoseHypothesis
+        With ``phi`` and ``run`` None.
+    """
+    guess = apply_transform(refinement.T_model_touch, np.asarray(point, dtype=np.float64)[None, :])
+    _, closest, face = model.surface.closest_points(guess)
+    return PoseHypothesis(
+        T_model_touch=refinement.T_model_touch,
+        error=float(refinement.error),
+        rms=float(refinement.rms),
+        contact=closest[0],
+        normal=model.surface.interpolated_normals(closest, face)[0],
+        phi=None,
+        run=None,
+    )
 
 
 def refine_searches(

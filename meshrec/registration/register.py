@@ -27,13 +27,13 @@ from meshrec.registration.poses import (
     distinct_poses,
     pose_hypotheses,
     refine_searches,
+    refined_pose,
 )
 from meshrec.registration.refine import refine_rigid
 from meshrec.registration.screening import screen_candidates
 from meshrec.registration.search import SEARCH_METHODS
 from meshrec.registration.searching import search_candidates
 from meshrec.registration.trace import RegistrationTrace
-from meshrec.registration.transform import apply_transform
 
 __all__ = ["Registration", "StageTimes", "refine_pose", "register", "touch_geometry"]
 
@@ -405,17 +405,7 @@ def refine_pose(
     t0 = time.perf_counter()
     ref = refine_rigid(model, touch.points, T0)
     t_refine = time.perf_counter() - t0
-    contact_guess = apply_transform(ref.T_model_touch, geometry.point[None, :])
-    _, closest, face = model.surface.closest_points(contact_guess)
-    pose = PoseHypothesis(
-        T_model_touch=ref.T_model_touch,
-        error=float(ref.error),
-        rms=float(ref.rms),
-        contact=closest[0],
-        normal=model.surface.interpolated_normals(closest, face)[0],
-        phi=None,
-        run=None,
-    )
+    pose = refined_pose(model, ref, geometry.point)
     return Registration(
         model=model.name,
         path=str(model.path),
