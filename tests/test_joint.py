@@ -252,3 +252,19 @@ def test_cli_recognises_several_touch_files(library, tmp_path, capsys, monkeypat
     assert code == 0
     assert "touch 3:" in text
     assert "3 touches of one object" in text
+
+
+def test_register_and_refine_pose_name_a_model_of_the_wrong_type(three_on_ellipsoid):
+    touches, *_ = three_on_ellipsoid
+    with pytest.raises(TypeError, match="model must be a ModelIndex"):
+        meshrec.register(touches[0], "ellipsoid")
+    with pytest.raises(TypeError, match="model must be a ModelIndex"):
+        meshrec.refine_pose(touches[0], "ellipsoid", np.eye(4))
+
+
+def test_refine_pose_refuses_a_complex_or_non_rigid_pose(library, three_on_ellipsoid):
+    touches, *_ = three_on_ellipsoid
+    with pytest.raises(TypeError, match="T_model_touch"):
+        meshrec.refine_pose(touches[0], library["ellipsoid"], np.eye(4) * (1 + 1j))
+    with pytest.raises(ValueError, match="T_model_touch"):
+        meshrec.refine_pose(touches[0], library["ellipsoid"], np.eye(4) * 2.0)

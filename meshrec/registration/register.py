@@ -18,8 +18,15 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
-from meshrec.io.checks import check_choice, check_instance, check_int, check_number
+from meshrec.io.checks import (
+    check_choice,
+    check_instance,
+    check_int,
+    check_number,
+    check_transform,
+)
 from meshrec.io.touch import TouchData
+from meshrec.model.index import ModelIndex
 from meshrec.registration.brackets import phi_brackets, refine_phis
 from meshrec.registration.lookup import lookup_candidates
 from meshrec.registration.poses import (
@@ -269,15 +276,17 @@ def register(
     Raises
     ------
     TypeError
-        If ``touch`` is not a TouchData, ``geometry`` not a LocalGeometry, ``method`` not a
-        string, ``max_candidates`` or ``searches`` not an integer, or ``lookup_scale`` not
-        a real number (the shared checks of :mod:`meshrec.io.checks`).
+        If ``touch`` is not a TouchData, ``model`` not a ModelIndex, ``geometry`` not a
+        LocalGeometry, ``method`` not a string, ``max_candidates`` or ``searches`` not an
+        integer, or ``lookup_scale`` not a real number (the shared checks of
+        :mod:`meshrec.io.checks`).
     ValueError
         If ``method`` is unknown, ``max_candidates`` or ``searches`` is less than 1,
         ``lookup_scale`` is not a positive finite number, or the local geometry cannot be
         estimated from the curves.
     """
     check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
     check_instance(geometry, LocalGeometry, "geometry", optional=True)
     _stage_inputs(method, max_candidates, searches, lookup_scale)
     t_start = time.perf_counter()
@@ -385,20 +394,17 @@ def refine_pose(
 
     Raises
     ------
+    TypeError
+        If ``touch`` is not a TouchData, ``model`` not a ModelIndex, ``geometry`` not a
+        LocalGeometry, or ``T_model_touch`` not real numbers (complex, say).
     ValueError
         If ``T_model_touch`` is not a finite (4, 4) rigid transform, or the local geometry
         cannot be estimated from the curves.
     """
-    T0 = np.asarray(T_model_touch, dtype=np.float64)
-    if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
-        raise ValueError(f"T_model_touch must be a finite (4, 4) array, got shape {T0.shape}")
-    R = T0[:3, :3]
-    if not (
-        np.allclose(R.T @ R, np.eye(3), atol=1e-6)
-        and np.linalg.det(R) > 0
-        and np.allclose(T0[3], [0, 0, 0, 1])
-    ):
-        raise ValueError("T_model_touch must be a rigid transform (rotation and translation)")
+    check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
+    check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    T0 = check_transform(T_model_touch, "T_model_touch", rigid=True)
     t_start = time.perf_counter()
     if geometry is None:
         geometry = touch_geometry(touch)
