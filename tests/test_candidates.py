@@ -215,7 +215,7 @@ def test_the_window_widens_with_noise_and_shrinks_with_length():
 def test_curvature_tolerance_errors():
     with pytest.raises(ValueError, match=r"half_length must be positive, got 0\.0"):
         curvature_tolerance(1.0, 1.0, 0.0, 0.001)
-    with pytest.raises(ValueError, match=r"half_length must be positive, got nan"):
+    with pytest.raises(ValueError, match=r"half_length must be finite, got nan"):
         curvature_tolerance(1.0, 1.0, float("nan"), 0.001)
     with pytest.raises(ValueError, match=r"fit_rms must be non-negative, got -1\.0"):
         curvature_tolerance(1.0, 1.0, 0.3, -1.0)

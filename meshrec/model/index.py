@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from meshrec import defaults
+from meshrec.io.checks import check_instance
 from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model_folder
 from meshrec.model.curvature import CurvatureTable
 from meshrec.model.mesh import MeshData, check_mesh_path, parse_mesh, read_mesh_file
@@ -227,6 +228,8 @@ class ModelIndex:
 
         Raises
         ------
+        TypeError
+            If ``path`` is not a str or path-like, or ``cache_dir`` neither one nor None.
         ValueError
             If ``params`` is not an :class:`IndexParams`; the file is missing, not a
             regular file, or cannot be loaded as a triangle mesh (see
@@ -239,6 +242,8 @@ class ModelIndex:
             If a cache entry is unusable (it is rebuilt) or cannot be written.
         """
         t0 = time.perf_counter()
+        check_instance(path, (str, os.PathLike), "path")
+        check_instance(cache_dir, (str, os.PathLike), "cache_dir", optional=True)
         if params is None:
             params = IndexParams()
         if not isinstance(params, IndexParams):

@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from meshrec.io.checks import check_instance
 from meshrec.model.cache import default_cache_dir, refuse_model_folder
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
@@ -84,6 +85,8 @@ class ModelLibrary:
 
         Raises
         ------
+        TypeError
+            If ``folder`` is not a str or path-like, or ``cache_dir`` neither one nor None.
         ValueError
             If ``folder`` does not exist, is not a directory or cannot be listed, holds no
             mesh file, or none of its mesh files can be loaded; ``params`` is not an
@@ -98,6 +101,8 @@ class ModelLibrary:
             models are indexed, and not at all when the ValueError is raised instead (its
             message lists every file and why it failed).
         """
+        check_instance(folder, (str, os.PathLike), "folder")
+        check_instance(cache_dir, (str, os.PathLike), "cache_dir", optional=True)
         root = Path(folder)
         files, skipped = folder_mesh_files(root)
         refuse_model_folder(cache_dir if cache_dir is not None else default_cache_dir(), root)

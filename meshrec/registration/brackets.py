@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_instance, check_int
+from meshrec.model.index import ModelIndex
 from meshrec.registration.chart import SurfacePoint, rotation_z
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.objective import mean_distances
@@ -148,9 +150,13 @@ def phi_brackets(
 
     Raises
     ------
+    TypeError
+        If ``model`` is not a ModelIndex or ``candidates`` not a ContactCandidates.
     ValueError
         If ``candidates`` is empty, ``steps`` is below 3 or ``n_points`` below 1.
     """
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
     if len(candidates) == 0:
         raise ValueError("candidates must hold at least one candidate, got none")
     if not isinstance(steps, (int, np.integer)) or steps < 3:
@@ -193,18 +199,25 @@ def refine_phis(
 
     Raises
     ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``candidates`` not a ContactCandidates,
+        ``brackets`` not a PhiBrackets, or an index not an integer.
     ValueError
         If ``brackets`` does not belong to ``candidates`` (another count) or an index is
         out of range.
     """
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
+    check_instance(brackets, PhiBrackets, "brackets")
     c = len(candidates)
     if brackets.errors.shape[0] != c:
         raise ValueError(
             f"brackets must be of these {c} candidates, got {brackets.errors.shape[0]}"
         )
     out = []
-    for i in indices:
-        if not 0 <= int(i) < c:
+    for k, i in enumerate(indices):
+        i = check_int(i, f"indices[{k}]")
+        if not 0 <= i < c:
             raise ValueError(f"indices must be in 0..{c - 1}, got {i!r}")
         local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
         error = phi_error(model, candidates.origins[i], local_sub)

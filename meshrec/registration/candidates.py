@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_number
 
 __all__ = ["CandidateSet", "curvature_tolerance", "find_candidates", "spread_points"]
 
@@ -75,12 +76,21 @@ def curvature_tolerance(
 
     Raises
     ------
+    TypeError
+        If an argument is not a real number (a complex number, a string, a bool).
     ValueError
-        If ``half_length`` is not positive or ``fit_rms`` is negative.
+        If an argument is not finite, ``half_length`` is not positive, or ``fit_rms``,
+        ``rel`` or ``noise_factor`` is negative.
     """
-    if not (np.isfinite(half_length) and half_length > 0):
+    k1 = check_number(k1, "k1")
+    k2 = check_number(k2, "k2")
+    half_length = check_number(half_length, "half_length")
+    fit_rms = check_number(fit_rms, "fit_rms")
+    rel = check_number(rel, "rel", minimum=0.0)
+    noise_factor = check_number(noise_factor, "noise_factor", minimum=0.0)
+    if not half_length > 0:
         raise ValueError(f"half_length must be positive, got {half_length!r}")
-    if not (np.isfinite(fit_rms) and fit_rms >= 0):
+    if not fit_rms >= 0:
         raise ValueError(f"fit_rms must be non-negative, got {fit_rms!r}")
     tau = rel * max(abs(k1), abs(k2)) + noise_factor * fit_rms / half_length**2
     return tau * (abs(k1) + abs(k2)) + tau * tau, tau

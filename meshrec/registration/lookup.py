@@ -15,7 +15,9 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
+from meshrec.model.index import ModelIndex
 from meshrec.registration.candidates import find_candidates
 from meshrec.registration.chart import SurfacePoint, tangent_frame
 
@@ -130,10 +132,16 @@ def lookup_candidates(
 
     Raises
     ------
+    TypeError
+        If ``touch`` is not a TouchData, ``model`` not a ModelIndex or ``geometry`` not a
+        LocalGeometry.
     ValueError
         If ``max_candidates`` is not a positive integer or ``lookup_scale`` is not a
         positive finite number.
     """
+    check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
+    check_instance(geometry, LocalGeometry, "geometry")
     if (
         not isinstance(max_candidates, (int, np.integer))
         or isinstance(max_candidates, bool)

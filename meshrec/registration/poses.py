@@ -10,12 +10,14 @@ whose rotation is within ``defaults.POSE_DUPLICATE_ANGLE_DEG`` of it is the same
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_instance, check_number, check_vector
+from meshrec.model.index import ModelIndex
 from meshrec.registration.chart import tangent_frame
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.refine import Refinement, refine_rigid
@@ -30,6 +32,20 @@ __all__ = [
     "refine_searches",
     "refined_pose",
 ]
+
+
+def _items(values, cls: type, name: str) -> list:
+    """``values`` as a list, each item checked to be a ``cls``.
+
+    Raises
+    ------
+    TypeError
+        If ``values`` is not an iterable (or is a string), or an item is not a ``cls``:
+        the message names ``name`` (and the item's index).
+    """
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise TypeError(f"{name} must be a sequence of {cls.__name__}, got {type(values).__name__}")
+    return [check_instance(v, cls, f"{name}[{k}]") for k, v in enumerate(values)]
 
 
 @dataclass(frozen=True)
@@ -99,8 +115,19 @@ def refined_pose(model, refinement: Refinement, point: np.ndarray) -> PoseHypoth
     -------
     PoseHypothesis
         With ``phi`` and ``run`` None.
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``refinement`` not a Refinement, or ``point``
+        not real numbers.
+    ValueError
+        If ``point`` is not a finite (3,) vector.
     """
-    guess = apply_transform(refinement.T_model_touch, np.asarray(point, dtype=np.float64)[None, :])
+    check_instance(model, ModelIndex, "model")
+    check_instance(refinement, Refinement, "refinement")
+    point = check_vector(point, "point")
+    guess = apply_transform(refinement.T_model_touch, point[None, :])
     _, closest, face = model.surface.closest_points(guess)
     return PoseHypothesis(
         T_model_touch=refinement.T_model_touch,
@@ -138,9 +165,15 @@ def refine_searches(
 
     Raises
     ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``candidates`` not a ContactCandidates or
+        ``searches`` not a Searches.
     ValueError
         If ``best`` is not a positive integer.
     """
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
+    check_instance(searches, Searches, "searches")
     if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
         raise ValueError(f"best must be a positive integer, got {best!r}")
     order = sorted(range(len(searches.runs)), key=lambda k: searches.runs[k].result.error)
@@ -173,7 +206,17 @@ def pose_hypotheses(
     -------
     tuple of PoseHypothesis
         One per refined search (duplicates included; see :func:`distinct_poses`).
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``candidates`` not a ContactCandidates,
+        ``searches`` not a Searches, or ``refined`` not a sequence of RefinedSearch.
     """
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
+    check_instance(searches, Searches, "searches")
+    refined = _items(refined, RefinedSearch, "refined")
     out = []
     for r in refined:
         run = searches.runs[r.run]
@@ -235,10 +278,18 @@ def distinct_poses(
 
     Raises
     ------
+    TypeError
+        If ``hypotheses`` is not a sequence of PoseHypothesis, or ``half_length``,
+        ``distance_fraction`` or ``angle_deg`` is not a real number.
     ValueError
-        If ``half_length`` is not positive, or a tolerance is negative.
+        If ``half_length`` is not positive and finite, or a tolerance is negative or not
+        finite.
     """
-    if not (np.isfinite(half_length) and half_length > 0):
+    hypotheses = _items(hypotheses, PoseHypothesis, "hypotheses")
+    half_length = check_number(half_length, "half_length")
+    distance_fraction = check_number(distance_fraction, "distance_fraction")
+    angle_deg = check_number(angle_deg, "angle_deg")
+    if not half_length > 0:
         raise ValueError(f"half_length must be positive, got {half_length!r}")
     if not (distance_fraction >= 0 and angle_deg >= 0):
         raise ValueError(

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_instance
+from meshrec.model.index import ModelIndex
 from meshrec.registration.brackets import PhiBrackets
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.refine import refine_rigid
@@ -67,10 +69,16 @@ def screen_candidates(
 
     Raises
     ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``candidates`` not a ContactCandidates or
+        ``brackets`` not a PhiBrackets.
     ValueError
         If ``brackets`` does not belong to ``candidates``, or ``limit`` or
         ``iterations`` is not a positive integer.
     """
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
+    check_instance(brackets, PhiBrackets, "brackets")
     if brackets.errors.shape[0] != len(candidates):
         raise ValueError(
             f"brackets must be of these {len(candidates)} candidates, "

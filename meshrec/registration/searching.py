@@ -11,12 +11,14 @@ model's searches only, so a model's result does not depend on any other model.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from meshrec import defaults
+from meshrec.io.checks import check_choice, check_instance, check_int, check_number
+from meshrec.model.index import ModelIndex
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.sampling import even_subsample
 from meshrec.registration.search import SEARCH_METHODS, LocalSearch, local_search
@@ -65,6 +67,37 @@ class Searches:
         return f"Searches(runs={len(self.runs)}, errors={errs}, stopped_early={self.stopped_early})"
 
 
+def _starts(starts, c: int) -> list[tuple[int, float]]:
+    """The (candidate, phi) starts checked, before any search runs.
+
+    Raises
+    ------
+    TypeError
+        If ``starts`` or one of its items is not a sequence, or an index is not an
+        integer or a phi not a real number.
+    ValueError
+        If a start is not a pair, names no candidate in ``0..c-1``, or its phi is not
+        finite.
+    """
+    if isinstance(starts, (str, bytes)) or not isinstance(starts, Iterable):
+        raise TypeError(
+            f"starts must be a sequence of (int, float) pairs, got {type(starts).__name__}"
+        )
+    pairs = []
+    for k, start in enumerate(starts):
+        if isinstance(start, (str, bytes)) or not isinstance(start, Iterable):
+            raise TypeError(f"starts[{k}] must be an (int, float) pair, got {type(start).__name__}")
+        start = tuple(start)
+        if len(start) != 2:
+            raise ValueError(f"starts[{k}] must be an (int, float) pair, got {len(start)} items")
+        i = check_int(start[0], f"starts[{k}][0]")
+        phi0 = check_number(start[1], f"starts[{k}][1]")
+        if not 0 <= i < c:
+            raise ValueError(f"starts[{k}] must name a candidate in 0..{c - 1}, got {i!r}")
+        pairs.append((i, phi0))
+    return pairs
+
+
 def search_candidates(
     model,
     candidates: ContactCandidates,
@@ -92,12 +125,19 @@ def search_candidates(
 
     Raises
     ------
+    TypeError
+        If ``model`` is not a ModelIndex, ``candidates`` not a ContactCandidates, or
+        ``starts`` not a sequence of (integer, real number) pairs, or ``method`` not a
+        string.
     ValueError
-        If ``method`` is unknown or a candidate index is out of range.
+        If ``method`` is unknown, a start is not a pair, a candidate index is out of range
+        or a phi is not finite.
     """
-    if method not in SEARCH_METHODS:
-        raise ValueError(f"method must be one of {SEARCH_METHODS}, got {method!r}")
+    check_instance(model, ModelIndex, "model")
+    check_instance(candidates, ContactCandidates, "candidates")
+    check_choice(method, SEARCH_METHODS, "method")
     c = len(candidates)
+    pairs = _starts(starts, c)
     geometry = candidates.geometry
     scale = float(geometry.half_length)
     good_fit = defaults.SEARCH_GOOD_FIT * float(geometry.fit_rms)
@@ -106,16 +146,14 @@ def search_candidates(
     best = np.inf
     stale = 0
     stopped = False
-    for k, (i, phi0) in enumerate(starts):
-        if not 0 <= int(i) < c:
-            raise ValueError(f"starts[{k}] must name a candidate in 0..{c - 1}, got {i!r}")
+    for k, (i, phi0) in enumerate(pairs):
         local = candidates.local_points[candidates.side[i]][subset]
         found = local_search(model, local, candidates.origins[i], phi0, scale, method=method)
         runs.append(SearchRun(candidate=int(i), phi0=float(phi0), result=found))
         better = found.error < (1.0 - defaults.SEARCH_IMPROVEMENT) * best
         stale = 0 if better else stale + 1
         best = min(best, found.error)
-        if stale >= defaults.SEARCH_PATIENCE and best <= good_fit and k + 1 < len(starts):
+        if stale >= defaults.SEARCH_PATIENCE and best <= good_fit and k + 1 < len(pairs):
             stopped = True
             break
     return Searches(runs=tuple(runs), subset=subset, stopped_early=stopped)
