@@ -1,6 +1,7 @@
 """Tests for meshrec.model.cache: keys, atomic writes, corrupt entries, unwritable folders."""
 
 import os
+import stat
 import subprocess
 import sys
 import textwrap
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from meshrec._version import __version__
+from meshrec.io import files as files_mod
 from meshrec.model import cache as cache_mod
 from meshrec.model.cache import ArrayCache, CacheWarning, default_cache_dir, file_sha256, make_key
 
@@ -186,7 +188,7 @@ def test_read_only_directory_simulated(tmp_path, monkeypatch):
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied", str(tmp_path))
 
-    monkeypatch.setattr(cache_mod.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(files_mod.tempfile, "mkstemp", refuse)
     with pytest.warns(CacheWarning, match="PermissionError.*continuing without caching"):
         assert ArrayCache(tmp_path).save(KEY, _arrays()) is None
     assert list(tmp_path.iterdir()) == []
@@ -214,6 +216,40 @@ def test_interrupted_write_never_shows_under_final_name(tmp_path, monkeypatch):
     with pytest.warns(CacheWarning, match="disk full"):
         assert c.save(KEY, _arrays()) is None
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_entry_is_written_by_the_one_atomic_writer(tmp_path, monkeypatch):
+    """The cache writes through meshrec.io.files.write_atomic, under the temporary name
+    its sweep recognises, and fsyncs the folder after the rename."""
+    calls, synced_dirs = [], []
+    real_write, real_fsync = cache_mod.write_atomic, os.fsync
+
+    def spy(path, content, **kwargs):
+        calls.append((Path(path), kwargs))
+        return real_write(path, content, **kwargs)
+
+    def fsync(fd):
+        if stat.S_ISDIR(os.fstat(fd).st_mode):
+            synced_dirs.append(fd)
+        return real_fsync(fd)
+
+    monkeypatch.setattr(cache_mod, "write_atomic", spy)
+    monkeypatch.setattr(files_mod.os, "fsync", fsync)
+    path = ArrayCache(tmp_path).save(KEY, _arrays(), label="ball")
+    ((written, kwargs),) = calls
+    assert written == path
+    assert cache_mod._TEMP_RE.fullmatch(kwargs["prefix"] + "abc_123" + kwargs["suffix"])
+    assert synced_dirs  # the folder, after the rename
+    assert ArrayCache(tmp_path).load(KEY, ["x"], label="ball") is not None
+
+
+def test_an_entry_follows_the_umask(tmp_path):
+    previous = os.umask(0o027)
+    try:
+        path = ArrayCache(tmp_path).save(KEY, _arrays())
+    finally:
+        os.umask(previous)
+    assert path.stat().st_mode & 0o777 == 0o640  # as open() would make it, not mkstemp's 0600
 
 
 @pytest.mark.slow

@@ -76,6 +76,26 @@ def test_write_atomic_errors(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir"]
 
 
+def test_write_atomic_names_its_temporary_file_by_prefix_and_suffix(tmp_path):
+    seen = []
+
+    def write(name):
+        seen.append(os.path.basename(name))
+        with open(name, "wb") as fh:
+            fh.write(b"x")
+
+    write_atomic(tmp_path / "entry.npz", write, prefix=".entry.host.42.", suffix=".tmp")
+    (name,) = seen
+    assert name.startswith(".entry.host.42.")
+    assert name.endswith(".tmp")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["entry.npz"]
+    with pytest.raises(TypeError, match="prefix must be a str or None, got int"):
+        write_atomic(tmp_path / "y", "x", prefix=3)
+    with pytest.raises(TypeError, match="suffix must be a str or None, got bytes"):
+        write_atomic(tmp_path / "y", "x", suffix=b".tmp")
+    assert not (tmp_path / "y").exists()
+
+
 # ----------------------------------------------------------------------------- read_text
 def test_read_text(tmp_path):
     path = tmp_path / "t.txt"

@@ -18,7 +18,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from meshrec.io.checks import one_line
+from meshrec.io.checks import check_instance, one_line
 
 __all__ = ["read_text", "write_atomic"]
 
@@ -30,7 +30,13 @@ def _umask() -> int:
     return mask
 
 
-def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
+def write_atomic(
+    path,
+    content: str | bytes | Callable[[str], None],
+    *,
+    prefix: str | None = None,
+    suffix: str | None = None,
+) -> Path:
     """Write a file atomically: a temporary file in its folder, fsync, then a rename.
 
     Parameters
@@ -40,7 +46,12 @@ def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
     content : str or bytes or callable
         Text (written as UTF-8), bytes, or a function ``write(tmp_name)`` that writes the
         file itself (a picture library's ``savefig``, for instance); ``tmp_name`` ends in
-        the suffix of ``path``.
+        ``suffix``.
+    prefix, suffix : str or None
+        The temporary file's name is ``prefix + random + suffix``, in the folder of
+        ``path`` (a sweeper of abandoned temporary files may recognise its own by them,
+        as :class:`meshrec.model.cache.ArrayCache` does). ``None``: ``".<stem>."`` and
+        ``".tmp<suffix of path>"`` (picture writers choose the format by the suffix).
 
     Returns
     -------
@@ -50,18 +61,22 @@ def write_atomic(path, content: str | bytes | Callable[[str], None]) -> Path:
     Raises
     ------
     TypeError
-        If ``content`` is neither text, bytes nor callable.
+        If ``content`` is neither text, bytes nor callable, or ``prefix`` or ``suffix``
+        neither a string nor None.
     OSError
         If the folder or the file cannot be written; the temporary file is removed and
         an existing file at ``path`` is left as it was.
     """
     if not isinstance(content, (str, bytes)) and not callable(content):
         raise TypeError(f"content must be str, bytes or callable, got {type(content).__name__}")
+    check_instance(prefix, str, "prefix", optional=True)
+    check_instance(suffix, str, "suffix", optional=True)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    # the temporary name keeps the suffix: picture writers choose the format by it
     fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent
+        prefix=f".{path.stem}." if prefix is None else prefix,
+        suffix=f".tmp{path.suffix}" if suffix is None else suffix,
+        dir=path.parent,
     )
     try:
         if callable(content):

@@ -4,9 +4,11 @@ Every entry is one uncompressed ``.npz`` file named after its key. Besides the c
 arrays it stores the key itself and a SHA-256 checksum of the arrays, so that a file that
 is truncated, corrupt, belongs to another key or version, or lacks arrays is detected on
 load: the cache then warns (:class:`CacheWarning`) and reports a miss, and the caller
-rebuilds. Writes go to a temporary file in the cache directory, are fsynced and then
-moved into place with :func:`os.replace`, so readers never see a half-written entry and
-concurrent writers of the same key both succeed (the last one wins, with equal content).
+rebuilds. Writes go through meshrec's one atomic writer, :func:`meshrec.io.files.write_atomic`:
+a temporary file in the cache directory, fsynced, moved into place with :func:`os.replace`
+and the folder fsynced, so readers never see a half-written entry and concurrent writers
+of the same key both succeed (the last one wins, with equal content). Entries get the mode
+``open()`` would give them (0666 less the umask).
 A cache directory that cannot be created or written is warned about once per operation
 and the computation carries on uncached.
 
@@ -18,14 +20,12 @@ than ``_STALE_TEMP_SECONDS``. A file a live process is writing is never touched.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import os
 import re
 import socket
 import stat
-import tempfile
 import time
 import warnings
 import zipfile
@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from meshrec._version import __version__
+from meshrec.io.files import write_atomic
 
 __all__ = [
     "ArrayCache",
@@ -405,30 +406,23 @@ class ArrayCache:
         payload = {name: np.asarray(a) for name, a in arrays.items()}
         payload[_KEY_NAME] = np.array(key)
         payload[_CHECKSUM_NAME] = np.array(_checksum({n: payload[n] for n in arrays}))
-        tmp_name = None
+
+        def write(tmp_name: str) -> None:
+            # through a file object: np.savez given a name would append ".npz" to it
+            with open(tmp_name, "wb") as f:
+                np.savez(f, **payload)
+
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             self._sweep()
-            fd, tmp_name = tempfile.mkstemp(
-                prefix=_temp_prefix(path.stem), suffix=".tmp", dir=self.directory
-            )
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, **payload)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp_name, path)
-            tmp_name = None
-            self._fsync_dir()
+            # the temporary name is the one _sweep recognises (_TEMP_RE): host and pid
+            write_atomic(path, write, prefix=_temp_prefix(path.stem), suffix=".tmp")
         except (OSError, ValueError) as exc:
             self._warn(
                 f"cannot write cache file {str(path)!r} ({type(exc).__name__}: {exc}); "
                 "continuing without caching"
             )
             return None
-        finally:
-            if tmp_name is not None:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp_name)
         return path
 
     def _sweep(self) -> None:
@@ -454,21 +448,6 @@ class ArrayCache:
                     os.unlink(entry.path)
             except OSError:
                 continue
-
-    def _fsync_dir(self) -> None:
-        """Flush the directory entry of a finished write (best effort, POSIX only)."""
-        if os.name != "posix":
-            return
-        try:
-            fd = os.open(self.directory, os.O_RDONLY)
-        except OSError:
-            return
-        try:
-            os.fsync(fd)
-        except OSError:
-            pass
-        finally:
-            os.close(fd)
 
     @staticmethod
     def _warn(message: str) -> None:
