@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import trimesh
 
 from meshrec import simulate_touch
 from meshrec.app import cli
@@ -165,3 +166,22 @@ def test_a_terminal_on_standard_input_is_refused(monkeypatch, capsys):
         "meshrec: error: touch file -: standard input is a terminal; pipe a CSV or JSON "
         "touch into it\n"
     )
+
+
+def test_batch_exits_0_when_a_touch_is_unknown_and_its_line_says_so(touches, tmp_path):
+    """Unlike a single recognition (exit 1 when unknown), --batch exits 0 when every file
+    was read and recognised, whatever the verdicts: each line carries its touch's verdict."""
+    folder, env = touches
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)  # curvature 10: no paper
+    touch = simulate_touch(sphere, length=0.2, noise=0.001, rng=5).touch  # surface has it
+    touch.to_file(tmp_path / "sphere.csv")
+    single = _run(["recognize", str(tmp_path / "sphere.csv")], env, folder)
+    assert single.returncode == 1, single.stderr
+    proc = _run(
+        ["recognize", "--batch", str(tmp_path / "sphere.csv"), "ellipsoid.json"], env, folder
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert [d["verdict"] for d in lines] == ["unknown", "recognised"]
+    assert "error" not in lines[0]
+    assert "not in the library" in lines[0]["reason"]
