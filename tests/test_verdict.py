@@ -173,6 +173,16 @@ def test_cli_recognised_shows_probabilities_and_exits_0(tmp_path, env, surfaces)
     assert sum(p["weight"] for p in poses) == pytest.approx(1.0)
     assert poses[0]["transform"] == doc["ranking"][0]["transform"]
     assert poses[0]["weight"] == pytest.approx(max(p["weight"] for p in poses))
+    assert len(poses) >= 2
+    weights = sorted((p["weight"] for p in poses), reverse=True)
+    assert weights[0] <= 2.0 * weights[1]  # the two heaviest: nearly equal, not one and zero
+    # and they are twins: each pose is the first turned by a symmetry of the ellipsoid
+    T0 = np.array(poses[0]["transform"])
+    turns = meshrec.symmetry_rotations("ellipsoid")
+    for p in poses[1:]:
+        D = np.array(p["transform"]) @ np.linalg.inv(T0)
+        assert min(np.abs(D[:3, :3] - S).max() for S in turns) < 1e-3
+        np.testing.assert_allclose(D[:3, 3], 0.0, atol=1e-3)  # about the model's centre
 
 
 def test_cli_library_warnings_reach_the_json(tmp_path, env, surfaces):
