@@ -490,12 +490,12 @@ def test_unwritable_cache_still_works(tmp_path):
 
 
 def test_read_only_cache_still_works(tmp_path, monkeypatch):
-    from meshrec.model import cache as cache_mod
+    from meshrec.io import files as files_mod  # the cache writes through write_atomic
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(cache_mod.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(files_mod.tempfile, "mkstemp", refuse)
     mesh = trimesh.creation.icosphere(subdivisions=2)
     for _ in range(2):
         with pytest.warns(CacheWarning, match="continuing without caching"):
