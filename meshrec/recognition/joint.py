@@ -394,7 +394,10 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     better than that touch's own best registration, so the joint log-likelihood is at
     most the sum of the registered touches' own (the others' at most 0). A model whose
     bound is already far below the best model's joint log-likelihood cannot become
-    plausible by registering its remaining touches.
+    plausible by registering its remaining touches. A touch whose (K, H) lookup found no
+    candidate on the model adds nothing: the lookup is a prior, not a gate (a touch on a
+    seam matches no vertex of the right model), and the other touches may still place
+    the model; its joint fit then scores that touch too.
 
     Parameters
     ----------
@@ -406,12 +409,12 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     Returns
     -------
     float
-        ``-inf`` when a registered touch found no candidate.
+        At most 0.
     """
     total = 0.0
     for touch, reg in zip(touches, fit.single, strict=False):
         if reg.rejected:
-            return float("-inf")
+            continue
         n_eff = effective_points(touch.n_points)
         total -= 0.5 * n_eff * (reg.rms / noise) ** 2
     return total
