@@ -224,3 +224,31 @@ def test_written_files_follow_the_umask(tmp_path):
     TouchData(curves=_curves()).to_file(tmp_path / "shared.json")
     assert (tmp_path / "private.csv").stat().st_mode & 0o777 == 0o600
     assert (tmp_path / "shared.json").stat().st_mode & 0o777 == 0o666 & ~previous
+
+
+def test_from_dict_checks_as_the_json_file_reader_does(tmp_path):
+    """from_dict is the file reader's check: same touch, same problem in the message."""
+    curves = [c.tolist() for c in _curves()]
+    obj = {"curves": curves, "normal": [0.0, 0.0, 2.0]}
+    touch = TouchData.from_dict(obj, source="<request>")
+    assert touch.source == "<request>"
+    np.testing.assert_allclose(touch.normal, [0.0, 0.0, 1.0])
+    path = tmp_path / "t.json"
+    path.write_text(json.dumps(obj))
+    from_file = TouchData.from_json(path)
+    for a, b in zip(touch.curves, from_file.curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    for bad, problem in [
+        (3, "expected an object with a 'curves' list"),
+        ({"curves": 3}, "'curves' must be a list of curves"),
+        ({"curves": curves, "colour": 1}, "unknown keys"),
+        ({"curves": [[[0, 0, True]]]}, "must hold numbers"),
+        ({"curves": curves, "contact": [0, 0]}, "contact must have 3 numbers"),
+    ]:
+        with pytest.raises(ValueError, match=r"^request body: .*" + problem):
+            TouchData.from_dict(bad, label="request body")
+        path.write_text(json.dumps(bad))
+        with pytest.raises(ValueError, match=problem):
+            TouchData.from_json(path)
+    with pytest.raises(ValueError, match=r"^touch: "):
+        TouchData.from_dict({"curves": [[[0.0, 0.0, float("nan")]] * 5] * 3})

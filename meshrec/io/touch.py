@@ -271,11 +271,45 @@ class TouchData:
             raise ValueError(f"{label}: not valid JSON ({exc})") from None
         except RecursionError:
             raise ValueError(f"{label}: JSON nested too deeply") from None
+        return cls.from_dict(data, source=str(path), label=label)
+
+    @classmethod
+    def from_dict(cls, obj, source: str | None = None, label: str | None = None) -> TouchData:
+        """A touch from a parsed JSON object ``{"curves": [...], "contact"?: [...],
+        "normal"?: [...]}``, checked as :meth:`from_json` checks a file's (it reads files
+        through this).
+
+        Parameters
+        ----------
+        obj : object
+            What ``json.loads`` gave: the object must be a dict with exactly those keys.
+        source : str, optional
+            Where the touch came from (its :attr:`source`).
+        label : str, optional
+            What the messages call the touch (default: ``"touch <source>"``, or
+            ``"touch"``).
+
+        Returns
+        -------
+        TouchData
+
+        Raises
+        ------
+        ValueError
+            If ``obj`` is not an object with a ``curves`` list, has other keys, a curve is
+            not a list of ``[x, y, z]`` lists of numbers (finite, and within the range of
+            a float), there are more than ``defaults.MAX_CURVES`` curves or
+            ``defaults.MAX_TOUCH_POINTS`` points, ``contact`` or ``normal`` is not three
+            numbers, or the content fails validation (the message starts with ``label``).
+        """
+        if label is None:
+            label = "touch" if source is None else f"touch {one_line(source)}"
+        data = obj
         if not isinstance(data, dict) or "curves" not in data:
             raise ValueError(f"{label}: expected an object with a 'curves' list")
         unknown = set(data) - {"curves", "contact", "normal"}
         if unknown:
-            raise ValueError(f"{label}: unknown keys {one_line(sorted(unknown))}")
+            raise ValueError(f"{label}: unknown keys {one_line(sorted(map(str, unknown)))}")
         if not isinstance(data["curves"], list):
             raise ValueError(f"{label}: 'curves' must be a list of curves")
         if len(data["curves"]) > defaults.MAX_CURVES:
@@ -301,7 +335,15 @@ class TouchData:
         for key in ("contact", "normal"):
             if data.get(key) is not None:
                 _check_json_vector(label, data[key], key)
-        return cls._checked(path, data["curves"], data.get("contact"), data.get("normal"))
+        try:
+            return cls(
+                curves=data["curves"],
+                contact=data.get("contact"),
+                normal=data.get("normal"),
+                source=source,
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{label}: {exc}") from None
 
     @classmethod
     def _checked(cls, path, curves, contact, normal) -> TouchData:
