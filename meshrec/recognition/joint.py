@@ -395,9 +395,8 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     most the sum of the registered touches' own (the others' at most 0). A model whose
     bound is already far below the best model's joint log-likelihood cannot become
     plausible by registering its remaining touches. A touch whose (K, H) lookup found no
-    candidate on the model adds nothing: the lookup is a prior, not a gate (a touch on a
-    seam matches no vertex of the right model), and the other touches may still place
-    the model; its joint fit then scores that touch too.
+    candidate on the model rules it out here, as for one touch; when then no model fits
+    the touches, the recognition widens the lookup and registers every touch again.
 
     Parameters
     ----------
@@ -409,12 +408,12 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     Returns
     -------
     float
-        At most 0.
+        At most 0; ``-inf`` when a registered touch found no candidate.
     """
     total = 0.0
     for touch, reg in zip(touches, fit.single, strict=False):
         if reg.rejected:
-            continue
+            return float("-inf")
         n_eff = effective_points(touch.n_points)
         total -= 0.5 * n_eff * (reg.rms / noise) ** 2
     return total
