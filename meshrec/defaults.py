@@ -399,3 +399,16 @@ ADVICE_GAIN_TIE = 1e-2
 #: Ridge added to the pose information matrix, relative to its mean eigenvalue (symmetric
 #: shapes leave null directions: a cylinder's roll about its axis).
 ADVICE_RIDGE = 1e-6
+
+# --- the HTTP service (meshrec serve, meshrec.app.commands_serve) -------------------------
+#: Largest request body `meshrec serve` reads, bytes: the largest touch file
+#: (TOUCH_MAX_FILE_BYTES). A body over it is refused (HTTP 413) from its Content-Length
+#: or, without one, as soon as that many bytes have arrived, before it is parsed.
+SERVICE_MAX_BODY_BYTES = TOUCH_MAX_FILE_BYTES
+#: Most touches in one request (`{"touches": [...]}`): each is registered on every model,
+#: so a request's time grows with them; a robot makes a handful before it decides.
+SERVICE_MAX_TOUCHES = 16
+#: Requests waiting for the recognition lock beyond this get HTTP 503 at once (with a
+#: Retry-After) rather than queueing for minutes: a client that wants the answer now
+#: should know the service is busy.
+SERVICE_MAX_WAITING = 8

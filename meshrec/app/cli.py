@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 from meshrec import defaults
 from meshrec._version import __version__
 from meshrec.app.commands_advice import add_advice_parser
+from meshrec.app.commands_serve import add_serve_parser
 from meshrec.app.commands_viz import add_viz_parsers
 
 if TYPE_CHECKING:
@@ -148,6 +149,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
     add_viz_parsers(sub, models_arg, touch_arg)
     add_advice_parser(sub, models_arg, touch_arg)
+    add_serve_parser(sub, models_arg)
     return p
 
 
@@ -339,6 +341,10 @@ def _run(args) -> int:
         from meshrec.app.commands_viz import run_viz
 
         return run_viz(args)
+    if args.command == "serve":
+        from meshrec.app.commands_serve import run_serve
+
+        return run_serve(args)
     if args.command == "next-touch":
         from meshrec.app.commands_advice import run_advice
 
