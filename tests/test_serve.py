@@ -278,3 +278,24 @@ def test_ctrl_c_stops_the_service_with_one_line(served):
         assert proc.stderr.read() == "meshrec: interrupted\n"
     finally:
         _stop(proc)
+
+
+def test_a_port_in_use_or_out_of_range_is_one_line_and_status_2(served):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        for value, pattern in [(str(port), "cannot listen on 127.0.0.1:"), ("70000", "--port")]:
+            proc = subprocess.run(
+                [*cli_command(), "serve", "--models", str(served.folder), "--port", value],
+                env=_env(served.cache),
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+            assert proc.returncode == 2, proc.stderr
+            assert proc.stderr.count("\n") == 1, proc.stderr
+            assert proc.stderr.startswith("meshrec: error: ")
+            assert pattern in proc.stderr

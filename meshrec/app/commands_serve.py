@@ -340,13 +340,10 @@ def _bind(host: str, port: int):
     Raises
     ------
     ValueError
-        If the port is out of range or the address cannot be bound (in use, unknown
-        host), in one line.
+        If the address cannot be bound (in use, unknown host), in one line.
     """
     import socket
 
-    if not 0 <= port <= 65535:
-        raise ValueError(f"--port must be 0 to 65535, got {port}")
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
         family, kind, proto, _, address = infos[0]
@@ -387,6 +384,8 @@ def run_serve(args, err=None) -> int:
         address cannot be bound.
     """
     err = sys.stderr if err is None else err
+    if not 0 <= args.port <= 65535:  # before the library is loaded
+        raise ValueError(f"--port must be 0 to 65535, got {args.port}")
     try:
         import starlette  # noqa: F401
         import uvicorn
