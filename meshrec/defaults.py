@@ -334,6 +334,11 @@ JOINT_PRUNE_LOG_RATIO = -14.0
 #: poses only seed the joint refinement, where the other touches pin the pose down. Half,
 #: for time (three touches cost about twice one: reports/touches.md); not tuned further.
 JOINT_EXTRA_SEARCHES = 4
+#: When a model's joint fit is still worse than the noise allows after every touch was
+#: registered alone, each touch's candidate contacts at this many of their best bracketed
+#: angles seed the joint refinement too (superellipsoid and bumped-sphere touches whose
+#: distinct poses all lay slid off the common pose: tools/touches.py, reports/touches.md).
+JOINT_PHI_MINIMA = 2
 #: Touches of one object whose curves' sizes (bounding-box diagonals) differ by more than
 #: this factor are refused as given in different units (millimetres and metres differ by
 #: 1000; real touches of one probe differ by a few times at most).

@@ -268,3 +268,20 @@ def test_refine_pose_refuses_a_complex_or_non_rigid_pose(library, three_on_ellip
         meshrec.refine_pose(touches[0], library["ellipsoid"], np.eye(4) * (1 + 1j))
     with pytest.raises(ValueError, match="T_model_touch"):
         meshrec.refine_pose(touches[0], library["ellipsoid"], np.eye(4) * 2.0)
+
+
+def test_candidate_seeds_are_the_traced_candidates_at_their_best_angles(
+    library, three_on_ellipsoid
+):
+    touches, *_ = three_on_ellipsoid
+    model = library["ellipsoid"]
+    reg = meshrec.register(touches[0], model, trace=True)
+    seeds = joint.candidate_seeds(reg, per_candidate=1)
+    assert len(seeds) == len(reg.trace.brackets.order)
+    # each seed lays the touch's common point on its candidate contact (the superposition)
+    cands = reg.trace.candidates
+    for T, i in zip(seeds, reg.trace.brackets.order, strict=True):
+        side = cands.sides[cands.side[i]]
+        placed = T[:3, :3] @ side.point + T[:3, 3]
+        assert np.allclose(placed, cands.origins[i].point, atol=1e-9)
+    assert joint.candidate_seeds(meshrec.register(touches[0], model)) == []

@@ -27,15 +27,17 @@ import numpy as np
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
-from meshrec.recognition.scoring import effective_points
+from meshrec.recognition.scoring import effective_points, fit_p_value
 from meshrec.registration.objective import residuals
+from meshrec.registration.phi import bracket_minima
 from meshrec.registration.poses import PoseHypothesis, distinct_poses, refined_pose
 from meshrec.registration.refine import refine_rigid
 from meshrec.registration.register import Registration, StageTimes, register
-from meshrec.registration.transform import apply_transform
+from meshrec.registration.transform import apply_transform, superposition
 
 __all__ = [
     "JointFit",
+    "candidate_seeds",
     "check_touch_sizes",
     "first_touch_fit",
     "joint_poses",
@@ -200,14 +202,17 @@ def joint_poses(
         return ()
     points = np.vstack([t.points for t in touches])
     n = len(points)
-    stacked = np.vstack([apply_transform(T, points) for T in seeds])
-    start_rms = np.sqrt((residuals(model, stacked).values.reshape(len(seeds), n) ** 2).mean(1))
+    stride = max(1, n // defaults.JOINT_COARSE_POINTS)
+    sub = points[::stride]
+    stacked = np.vstack([apply_transform(T, sub) for T in seeds])
+    start_rms = np.sqrt(
+        (residuals(model, stacked).values.reshape(len(seeds), len(sub)) ** 2).mean(1)
+    )
     # Coarse to fine: each seed refined on every k-th point (most seeds are far off and
     # take many steps), then the coarse results that come near the best one refined on
     # all the points (a few steps).
     # Only seeds that start near the best one: the others are far off (a wrong touch
     # placement) and would take many steps to reach what the best reaches in a few.
-    stride = max(1, n // defaults.JOINT_COARSE_POINTS)
     order = np.argsort(start_rms, kind="stable")[:best]
     coarse = [
         refine_rigid(model, points[::stride], seeds[k], max_iter=defaults.JOINT_COARSE_ITER)
@@ -234,6 +239,7 @@ def register_touches(
     previous: JointFit | None = None,
     method: str = defaults.SEARCH_METHOD,
     lookup_scale: float = 1.0,
+    noise: float | None = None,
 ) -> JointFit:
     """Register several touches of one object on one model at one rigid pose.
 
@@ -258,6 +264,13 @@ def register_touches(
         The local-search optimiser.
     lookup_scale : float
         Factor widening the (K, H) lookup window.
+    noise : float, optional
+        The touches' pooled noise (:func:`pooled_noise`). When given and every touch is
+        registered alone, a joint fit still worse than the noise allows
+        (``defaults.WIDEN_P_VALUE``) is searched harder: every candidate contact of every
+        touch at its best bracketed angles (:func:`candidate_seeds`) seeds the joint
+        refinement too (the touches' distinct poses may all be slid along a nearly
+        flat or symmetric patch, off the one pose that fits them all).
 
     Returns
     -------
@@ -290,6 +303,7 @@ def register_touches(
                 method=method,
                 lookup_scale=lookup_scale,
                 searches=searches,
+                trace=True,
             )
         )
     # Seeds: the joint poses already found (refined ones converge at once) and the poses
@@ -299,7 +313,52 @@ def register_touches(
     seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
     t1 = time.perf_counter()
     poses = joint_poses(model, touches, seeds, geometries[0])
+    n = int(sum(t.n_points for t in touches))
+    if (
+        noise is not None
+        and upto == len(touches)
+        and (not poses or fit_p_value(poses[0].rms, n, noise) < defaults.WIDEN_P_VALUE)
+    ):
+        more = [T for reg in single for T in candidate_seeds(reg)]
+        found = joint_poses(model, touches, more, geometries[0]) if more else ()
+        poses = distinct_poses(
+            sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
+        )
     return _fit(model, touches, single, poses, time.perf_counter() - t1, t0)
+
+
+def candidate_seeds(
+    registration: Registration, per_candidate: int = defaults.JOINT_PHI_MINIMA
+) -> list[np.ndarray]:
+    """Every candidate contact's pose at its best bracketed angles, from a traced registration.
+
+    Parameters
+    ----------
+    registration : Registration
+        From ``register(..., trace=True)``.
+    per_candidate : int
+        Bracketed minima of the error against phi kept per candidate, least first.
+
+    Returns
+    -------
+    list of (4, 4) float
+        ``T_model_touch`` of each (candidate, angle) kept by the phi stage; empty when the
+        registration has no trace or no candidate.
+    """
+    trace = registration.trace
+    if trace is None or trace.brackets is None:
+        return []
+    cands, brackets = trace.candidates, trace.brackets
+    out = []
+    for i in brackets.order:
+        side = cands.sides[cands.side[i]]
+        row = brackets.errors[i]
+        minima = sorted(bracket_minima(row), key=lambda j: row[j])[:per_candidate]
+        out.extend(
+            superposition(side.point, side.frame, cands.origins[i], brackets.grid[j])
+            for j in minima
+        )
+    return out
 
 
 def first_touch_fit(touches: Sequence[TouchData], model, first: Registration) -> JointFit:

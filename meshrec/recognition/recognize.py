@@ -316,7 +316,7 @@ def _rank_joint(touches, models, method, progress, geometries):
     for i, model in enumerate(models):
         if progress is not None:
             progress(i, len(models), model.name)
-        first = register(touches[0], model, geometry=geometries[0], method=method)
+        first = register(touches[0], model, geometry=geometries[0], method=method, trace=True)
         firsts[model.name] = first_touch_fit(touches, model, first)
     # The joint refinement, most promising model first (by the first touch's fit, then the
     # name: an order of the data, not of the library). A model whose first touch alone
@@ -349,7 +349,7 @@ def _rank_joint(touches, models, method, progress, geometries):
             if bound < leader + defaults.JOINT_PRUNE_LOG_RATIO:
                 continue  # cannot become plausible, whatever its other touches give
             fits[model.name] = register_touches(
-                touches, model, geometries, upto=upto, previous=fit, method=method
+                touches, model, geometries, upto=upto, previous=fit, method=method, noise=noise
             )
     rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
     return _ranked(rec, [f.registration for f in fits.values()]), fits
@@ -421,6 +421,7 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recogni
                 upto=len(rec.touches),
                 method=method,
                 lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+                noise=_noise_and_points(rec)[0],
             )
             wide = fit.registration
         else:
