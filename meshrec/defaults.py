@@ -175,6 +175,27 @@ SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0
 #: the median |H| counts as zero (a flat model) and 1 / scale is used instead.
 LOOKUP_MIN_H_FRACTION = 1e-6
 
+# --- model resolution check (meshrec.model.resolution; measured on the bundled models, the
+# --- YCB scans in ../shared/data/ycb and trimesh primitives, see the README) ---------------
+#: A touch curve should cross at least this many mesh vertices (curve length over the median
+#: edge), so that the curvature ball and the lookup see the surface at the curve's scale.
+#: The models recognised reliably cross 41 (bundled, 80k faces) and 17 to 18 (YCB scans);
+#: trimesh's default icosphere (subdivisions 3) crosses 5.2 and its 32-section cylinder 0.8.
+RESOLUTION_MIN_VERTICES_PER_CURVE = 8.0
+#: Largest chord error (the sagitta the vertex normals imply at an edge's middle) as a
+#: fraction of the curve length. The YCB scans, recognised well, reach at most 5.2e-3 and
+#: the bundled models 1.9e-4; trimesh's default torus 1.0e-2 and icosphere(2) 1.6e-2.
+RESOLUTION_MAX_CHORD_FRACTION = 8e-3
+#: A face is a long thin sliver when its longest edge squared over its area, times
+#: sqrt(3) / 4 (1 for an equilateral triangle), exceeds this: the YCB scans have 99% of
+#: their faces under 5.5; a CAD cylinder's full-height side faces (radius 10, height 40,
+#: 32 sections) reach 18.
+RESOLUTION_SLIVER_ASPECT = 10.0
+#: Largest fraction of the surface area in slivers: the YCB scans have at most 0.2% of
+#: their faces above RESOLUTION_SLIVER_ASPECT; a CAD cylinder is 80% sliver by area (its
+#: side has no vertex inside, so its curvature is never seen).
+RESOLUTION_MAX_SLIVER_FRACTION = 0.05
+
 # --- the Open3D baseline of the benchmarks (meshrec.bench.baseline) -----------------------
 #: Points sampled on each model's mesh for the baseline's target cloud.
 BASELINE_MODEL_POINTS = 20000

@@ -20,6 +20,7 @@ is created or unpickled; they are never cached or pickled.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import math
 import numbers
@@ -36,6 +37,7 @@ from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model
 from meshrec.model.curvature import CurvatureTable
 from meshrec.model.mesh import MeshData, check_mesh_path, parse_mesh, read_mesh_file
 from meshrec.model.record import RECORD_VERSION, IndexRecord
+from meshrec.model.resolution import Resolution, mesh_resolution
 from meshrec.model.surface import AabbSurface, SurfaceQuery, edge_bulges
 
 __all__ = ["IndexParams", "ModelIndex"]
@@ -150,6 +152,9 @@ class ModelIndex:
         Whether it came from the on-disk cache.
     load_seconds : float
         Wall time of :meth:`from_file` (reading, hashing, cache load or build, trees).
+    resolution : Resolution
+        The mesh's resolution against the default touch curve length, computed on first
+        use (not cached on disk; 0.04 to 0.08 s on an 80,000-face model).
 
     Raises
     ------
@@ -194,6 +199,11 @@ class ModelIndex:
             f"closed={self.mesh.closed}, scale={self.mesh.scale:.6g}, "
             f"from_cache={self.from_cache})"
         )
+
+    @functools.cached_property
+    def resolution(self) -> Resolution:
+        """The mesh's resolution (see :func:`meshrec.model.resolution.mesh_resolution`)."""
+        return mesh_resolution(self.mesh, curvature=self.curvature)
 
     # ------------------------------------------------------------------ construction
     @classmethod
