@@ -10,7 +10,8 @@ import numpy as np
 
 from meshrec.app.inputs import model_folder, model_units
 from meshrec.model.library import bundled_model_sets, bundled_models_dir, folder_mesh_files
-from meshrec.model.mesh import load_mesh
+from meshrec.model.mesh import MeshData, load_mesh
+from meshrec.model.resolution import mesh_resolution
 from meshrec.recognition.units import read_units_note
 
 __all__ = ["list_bundled", "list_folder", "run_models"]
@@ -40,8 +41,11 @@ def list_folder(folder: Path, units: str | None) -> dict:
     -------
     dict
         ``{"folder", "units", "models": [{"name", "file", "faces", "vertices", "size",
-        "mean_edge"}], "skipped": [{"file", "reason"}]}``; ``size`` is the bounding-box
-        diagonal and ``mean_edge`` the mean edge length, in the models' units.
+        "mean_edge", "vertices_per_curve", "chord_error", "sliver_fraction", "too_coarse",
+        "coarse_reasons"}], "skipped": [{"file", "reason"}]}``; ``size`` is the
+        bounding-box diagonal and ``mean_edge`` the mean edge length, in the models'
+        units; the resolution fields are those of
+        :func:`meshrec.model.resolution.mesh_resolution` (default curve length).
 
     Raises
     ------
@@ -61,6 +65,7 @@ def list_folder(folder: Path, units: str | None) -> dict:
             bad.append({"file": path.name, "reason": str(exc)})
             continue
         seen.add(path.stem)
+        res = mesh_resolution(MeshData.from_arrays(V, F))
         models.append(
             {
                 "name": path.stem,
@@ -69,6 +74,11 @@ def list_folder(folder: Path, units: str | None) -> dict:
                 "vertices": len(V),
                 "size": float(np.linalg.norm(np.ptp(V, axis=0))),
                 "mean_edge": float(igl.avg_edge_length(V, F)),
+                "vertices_per_curve": res.vertices_per_curve,
+                "chord_error": res.chord_error,
+                "sliver_fraction": res.sliver_fraction,
+                "too_coarse": res.too_coarse,
+                "coarse_reasons": list(res.reasons),
             }
         )
     return {"folder": str(folder), "units": units, "models": models, "skipped": bad}
@@ -93,11 +103,20 @@ def run_models(args, out) -> int:
         return 0
     units = doc["units"] or "unknown"
     out.write(f"{doc['folder']}: {len(doc['models'])} models, units {units}\n")
-    out.write(f"{'model':<24} {'faces':>8} {'vertices':>9} {'size':>10} {'mean edge':>10}\n")
+    out.write(
+        f"{'model':<24} {'faces':>8} {'vertices':>9} {'size':>10} {'mean edge':>10} "
+        f"{'per curve':>9}\n"
+    )
     for m in doc["models"]:
+        flag = "  too coarse" if m["too_coarse"] else ""
         out.write(
             f"{m['name']:<24} {m['faces']:>8} {m['vertices']:>9} {m['size']:>10.4g} "
-            f"{m['mean_edge']:>10.4g}\n"
+            f"{m['mean_edge']:>10.4g} {m['vertices_per_curve']:>9.3g}{flag}\n"
+        )
+    if any(m["too_coarse"] for m in doc["models"]):
+        out.write(
+            "per curve: vertices a touch curve crosses; too coarse: see `meshrec index` "
+            "or --json for why\n"
         )
     for s in doc["skipped"]:
         out.write(f"skipped {s['file']}: {s['reason']}\n")

@@ -39,7 +39,8 @@ def _resolve_model_file(text: str) -> Path:
 
 def run_index(args, out, err) -> int:
     """``meshrec index``: build or refresh the indexes, a progress line per stage on
-    ``err``, a line per model on ``out``; 0."""
+    ``err``, a line per model on ``out``, a ResolutionWarning per model too coarse for
+    reliable answers (:mod:`meshrec.model.resolution`); 0."""
     from meshrec.app import inputs
 
     folder = inputs.model_folder(args.models)
@@ -55,7 +56,19 @@ def run_index(args, out, err) -> int:
             f"{m.name:<24} {len(m.mesh.faces):>8} faces  "
             f"{int(m.curvature.valid.sum()):>8} table entries  {how}\n"
         )
+    _warn_coarse(library.models)
     return 0
+
+
+def _warn_coarse(models) -> None:
+    """One ResolutionWarning per model too coarse for reliable answers."""
+    import warnings
+
+    from meshrec.model.resolution import ResolutionWarning, coarse_message
+
+    for m in models:
+        if m.resolution.too_coarse:
+            warnings.warn(coarse_message(m.name, m.resolution), ResolutionWarning, stacklevel=2)
 
 
 def run_simulate(args, out) -> int:
