@@ -15,6 +15,7 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -157,7 +158,8 @@ def recognize(
         even the best fit is worse than the noise allows, every model is registered again
         with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict.
         Every warning raised inside is passed on as usual and its text kept in
-        ``Recognition.warnings``. With several touches, ``T_model_touch`` maps their
+        ``Recognition.warnings``, with a ResolutionWarning for each plausible (or best)
+        model too coarse for reliable answers. With several touches, ``T_model_touch`` maps their
         common frame to the model, and touches that no model fits at one pose (the object
         moved, or it is not in the library) give ``unknown`` with that reason.
 
@@ -200,6 +202,7 @@ def recognize(
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
                 rec = _with_verdict(rec, fits, models, method)
+            _warn_coarse(rec, models)
     finally:
         # Pass every warning on as before (the caller's filters decide what is shown),
         # also when the recognition fails; the result keeps their text.
@@ -208,6 +211,19 @@ def recognize(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
     return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+
+
+def _warn_coarse(rec: Recognition, models: list) -> None:
+    """A ResolutionWarning per model too coarse for reliable answers among the plausible
+    ones and the best (see :mod:`meshrec.model.resolution`)."""
+    names = list(rec.plausible)
+    if rec.best is not None:
+        names.append(rec.best.model)
+    by_name = {m.name: m for m in models}
+    for name in dict.fromkeys(names):
+        res = by_name[name].resolution
+        if res.too_coarse:
+            warnings.warn(coarse_message(name, res), ResolutionWarning, stacklevel=3)
 
 
 def _touches(touch) -> tuple[TouchData, ...]:
