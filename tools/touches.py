@@ -113,13 +113,13 @@ def _loop(library, model, T_world_model, rng, first, active: bool, length, noise
         touches.append(nxt)
 
 
-def run(set_seeds, trials, cache_dir, log, loop_length, loop_noise):
+def run(set_seeds, trials, cache_dir, log, loop_length, loop_noise, families=None):
     rows = []
     picture = None
     with tempfile.TemporaryDirectory() as tmp:
         for seed in set_seeds:
             folder = Path(tmp) / f"set{seed}"
-            bench.write_shapes(bench.shape_set(9, seed=seed), folder)
+            bench.write_shapes(bench.shape_set(9, seed=seed, families=families), folder)
             library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache_dir)
             rng = np.random.default_rng(500 + seed)
             for _trial in range(trials):
@@ -187,13 +187,17 @@ def report(rows, args, seconds) -> str:
         "",
         f"Command: `python tools/touches.py --sets {' '.join(map(str, args.sets))} "
         f"--trials {args.trials} --loop-length {args.loop_length} --loop-noise "
-        f"{args.loop_noise}`  ",
+        f"{args.loop_noise}"
+        + (f" --families {' '.join(args.families)}" if args.families else "")
+        + "`  ",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; shared 2-core machine; "
         f"{seconds / 60:.1f} min.",
         "",
         f"Shape sets {args.sets} (nine generated unit-size shapes each, "
-        "`meshrec.bench.shape_set`), every shape of the set in the library; curves "
+        "`meshrec.bench.shape_set`"
+        + (f", families {', '.join(args.families)}" if args.families else "")
+        + "), every shape of the set in the library; curves "
         f"{LENGTH} long, noise +-{NOISE} (uniform); {n} objects placed at random poses.",
         "",
         "## Three touches at random places",
@@ -287,6 +291,13 @@ def main(argv=None) -> int:
     p.add_argument("--figure", type=Path, default=None, help="PNG of one active run")
     p.add_argument("--loop-length", type=float, default=LENGTH, help="active loop's curves")
     p.add_argument("--loop-noise", type=float, default=NOISE, help="active loop's noise")
+    p.add_argument(
+        "--families",
+        nargs="+",
+        default=None,
+        help="shape families of the sets (default: all; e.g. ellipsoid bumped_sphere for a "
+        "library of look-alikes)",
+    )
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     rows, picture = run(
@@ -296,6 +307,7 @@ def main(argv=None) -> int:
         lambda s: print(s, flush=True),
         args.loop_length,
         args.loop_noise,
+        args.families,
     )
     text = report(rows, args, time.perf_counter() - t0)
     print(text)
