@@ -404,7 +404,10 @@ def test_cli_huge_normal_is_a_direction(setup):
     # (1e308)^2 overflows: it used to print an overflow warning and then an error
     proc = setup.cli["normal_huge"]
     assert proc.returncode == 0, proc.stderr
-    assert proc.stderr == ""
+    # nothing but the resolution check's warning about the small test ball
+    assert [
+        ln for ln in proc.stderr.splitlines() if "too coarse for reliable answers" not in ln
+    ] == []
     assert "recognised: ball" in proc.stdout
 
 

@@ -73,7 +73,7 @@ def test_two_concurrent_index_runs_leave_a_cache_a_third_run_accepts(tmp_path):
     for p, (out, err) in zip(procs, outs, strict=True):
         assert p.returncode == 0, err
         assert "Traceback" not in err
-        assert "warning" not in err
+        assert "warning" not in _without_resolution(err)
         assert set(_how(out)) == set(NAMES)
     # at least one of them built every model (both, when they ran at the same time)
     assert all("built" in (_how(outs[0][0])[n], _how(outs[1][0])[n]) for n in NAMES)
@@ -85,7 +85,7 @@ def test_two_concurrent_index_runs_leave_a_cache_a_third_run_accepts(tmp_path):
     third = run_cli(["index", "--models", str(models), "--cache-dir", str(cache)], env, tmp_path)
     assert third.returncode == 0, third.stderr
     assert _how(third.stdout) == dict.fromkeys(NAMES, "cached")
-    assert "warning" not in third.stderr
+    assert "warning" not in _without_resolution(third.stderr)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         lib = ModelLibrary.from_folder(models, cache_dir=cache)
@@ -158,14 +158,18 @@ def test_corrupt_or_truncated_cache_is_rebuilt_with_a_warning(tmp_path):
     second = run_cli(["index", "--models", str(models)], env, tmp_path)
     assert second.returncode == 0, second.stderr
     assert "Traceback" not in second.stderr
-    warned = [ln for ln in second.stderr.splitlines() if ln.startswith("meshrec: warning:")]
+    warned = [
+        ln
+        for ln in _without_resolution(second.stderr).splitlines()
+        if ln.startswith("meshrec: warning:")
+    ]
     assert len(warned) == 2
     assert any("ball-" in w and "unreadable" in w for w in warned)
     assert any("can-" in w and ("unreadable" in w or "checksum" in w) for w in warned)
     assert _how(second.stdout) == {"ball": "built", "can": "built", "pill": "cached"}
     third = run_cli(["index", "--models", str(models)], env, tmp_path)
     assert _how(third.stdout) == dict.fromkeys(NAMES, "cached")
-    assert "warning" not in third.stderr
+    assert "warning" not in _without_resolution(third.stderr)
 
 
 def test_a_changed_mesh_or_parameter_is_rebuilt(tmp_path):
@@ -181,3 +185,11 @@ def test_a_changed_mesh_or_parameter_is_rebuilt(tmp_path):
     other = ModelLibrary.from_folder(models, params=IndexParams(min_radius=3), cache_dir=cache)
     assert not any(m.from_cache for m in other)
     assert len(list(cache.iterdir())) == 3 + 1 + 3  # every version kept side by side
+
+
+def _without_resolution(stderr: str) -> str:
+    """stderr without the resolution check's warnings (these test meshes are coarse on
+    purpose: small and fast; test_resolution.py tests those warnings)."""
+    return "\n".join(
+        ln for ln in stderr.splitlines() if "too coarse for reliable answers" not in ln
+    )
