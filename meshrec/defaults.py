@@ -329,6 +329,11 @@ UNKNOWN_P_VALUE = 1e-3
 #: chi-square tail probability is below this (a fit worse than the noise allows: 18 of
 #: 494 calibration touches, 4.7% of the total time) ...
 WIDEN_P_VALUE = 0.01
+#: A model is only `recognised` when it fits to the noise: its chi-square tail is at
+#: least this; below it (and above UNKNOWN_P_VALUE) the answer is `ambiguous`. In
+#: reports/calibration_raw.json (494 touches) no right `recognised` answer had a tail
+#: below 0.01, and 4 of 13 wrong `recognised` answers (objects not in the library) did.
+RECOGNISE_P_VALUE = 0.01
 #: ... with the (K, H) lookup window this many times wider (a capsule whose trimesh mesh
 #: had no vertex on its cylinder, 42 of 60 touches rejected at 1x: 8 were found at 3x,
 #: every one at 4x).
@@ -438,3 +443,33 @@ SERVICE_MAX_TOUCHES = 16
 #: Retry-After) rather than queueing for minutes: a client that wants the answer now
 #: should know the service is busy.
 SERVICE_MAX_WAITING = 8
+
+# --- joint pose seeds from pairs of touches (meshrec.recognition.pairs) --------------------
+#: Model points per touch and side: the (K, H) lookup's hits spread over the surface.
+PAIR_CANDIDATES = 400
+#: ... chosen (farthest-point sampling) from at most this many of the hits, evenly strided.
+PAIR_SPREAD_POOL = 2000
+#: Pairs of touches used (those with the longest baselines).
+PAIR_MAX_PAIRS = 1
+#: Extra tolerance on the distance of a model pair, as a fraction of the touches' baseline.
+PAIR_DISTANCE_TOL = 0.02
+#: Tolerance on the cosines of the point-pair feature's angles for the estimated normals.
+PAIR_ANGLE_TOL = 0.15
+#: Pair poses kept by the cheap screens (nearest-vertex distances of a few points: the
+#: touches' contacts and one far point each, then a second far point each) ...
+PAIR_SCREEN_FIRST = 4096
+PAIR_SCREEN = 512
+#: ... (a distance counts at most this many half-lengths of the curves in the screen) ...
+PAIR_SCREEN_CAP = 1.0
+#: ... points per touch (evenly spaced) on which those are scored exactly ...
+PAIR_SCORE_POINTS = 8
+#: ... and the best this many poses seed the joint refinement.
+PAIR_KEEP = 32
+#: Pair poses refined jointly (coarse to fine, as JOINT_REFINE_SEEDS).
+PAIR_REFINE_SEEDS = 32
+#: Search adequacy: after the touch-by-touch step, a model whose joint fit is more than
+#: PAIR_SEARCH_GAP below the best model's log-likelihood, but whose best conceivable fit
+#: (every touch registered alone, ``joint.log_likelihood_bound``) comes within it of the
+#: best, is searched again from pairs of touches before the scores are trusted. Its joint
+#: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
+PAIR_SEARCH_GAP = 3.0

@@ -27,6 +27,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
+from meshrec.recognition.pairs import pair_seeds
 from meshrec.recognition.scoring import effective_points, fit_p_value
 from meshrec.registration.objective import residuals
 from meshrec.registration.phi import bracket_minima
@@ -44,6 +45,7 @@ __all__ = [
     "log_likelihood_bound",
     "pooled_noise",
     "register_touches",
+    "search_pairs",
     "touch_rms",
 ]
 
@@ -164,6 +166,7 @@ def joint_poses(
     geometry: LocalGeometry,
     *,
     best: int = defaults.JOINT_REFINE_SEEDS,
+    start_ratio: float = defaults.JOINT_KEEP_RATIO,
 ) -> tuple[PoseHypothesis, ...]:
     """Refine poses of the object jointly on every touch's points; the distinct results.
 
@@ -184,6 +187,10 @@ def joint_poses(
         within ``defaults.JOINT_KEEP_RATIO`` of the least, first on about
         ``defaults.JOINT_COARSE_POINTS`` of the points, then (those that come within
         ``defaults.JOINT_KEEP_RATIO`` of the best coarse RMS) on all of them.
+    start_ratio : float
+        Seeds whose starting RMS is more than this factor above the least are not refined
+        (``inf``: every one of the ``best``; for seeds that all start a little off the
+        pose, such as :func:`~meshrec.recognition.pairs.pair_seeds`).
 
     Returns
     -------
@@ -194,10 +201,12 @@ def joint_poses(
     Raises
     ------
     ValueError
-        If ``best`` is not a positive integer.
+        If ``best`` is not a positive integer or ``start_ratio`` is not at least 1.
     """
     if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
         raise ValueError(f"best must be a positive integer, got {best!r}")
+    if not start_ratio >= 1:
+        raise ValueError(f"start_ratio must be at least 1, got {start_ratio!r}")
     if len(seeds) == 0:
         return ()
     points = np.vstack([t.points for t in touches])
@@ -217,7 +226,7 @@ def joint_poses(
     coarse = [
         refine_rigid(model, points[::stride], seeds[k], max_iter=defaults.JOINT_COARSE_ITER)
         for k in order
-        if start_rms[k] <= defaults.JOINT_KEEP_RATIO * start_rms[order[0]]
+        if start_rms[k] <= start_ratio * start_rms[order[0]]
     ]
     least = min(c.rms for c in coarse)
     out = []
@@ -325,6 +334,62 @@ def register_touches(
             sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
         )
     return _fit(model, touches, single, poses, time.perf_counter() - t1, t0)
+
+
+def search_pairs(
+    touches: Sequence[TouchData],
+    model,
+    geometries: Sequence[LocalGeometry],
+    previous: JointFit,
+    *,
+    lookup_scale: float = 1.0,
+) -> JointFit:
+    """Search a model's joint pose again from pairs of touches (:func:`pair_seeds`).
+
+    For a model whose joint fit may have been missed: each touch alone fits it at many
+    places, none of them where all the touches fit. The poses that pairs of touches give
+    (two oriented contacts fix a rigid pose) are refined on every touch
+    (:func:`joint_poses`, every one of the ``defaults.PAIR_REFINE_SEEDS`` best, however far
+    off they start) and join the poses of
+    ``previous``.
+
+    Parameters
+    ----------
+    touches : sequence of TouchData
+        Two or more, in one frame.
+    model : ModelIndex
+    geometries : sequence of LocalGeometry
+        The local geometry of each touch.
+    previous : JointFit
+        The model's joint fit so far (:func:`register_touches`); its single-touch
+        registrations are kept.
+    lookup_scale : float
+        Factor widening the (K, H) lookup window.
+
+    Returns
+    -------
+    JointFit
+        ``previous`` with the pair poses among its poses (least RMS first).
+
+    Raises
+    ------
+    ValueError
+        As :func:`pair_seeds`.
+    """
+    t0 = time.perf_counter()
+    seeds = pair_seeds(touches, model, geometries, lookup_scale=lookup_scale)
+    found = joint_poses(
+        model, touches, seeds, geometries[0], best=defaults.PAIR_REFINE_SEEDS, start_ratio=np.inf
+    )
+    poses = distinct_poses(
+        sorted((*previous.registration.poses, *found), key=lambda p: p.rms),
+        float(geometries[0].half_length),
+    )
+    fit = _fit(model, touches, list(previous.single), poses, time.perf_counter() - t0, t0)
+    reg = dataclasses.replace(
+        fit.registration, seconds=previous.registration.seconds + fit.registration.seconds
+    )
+    return dataclasses.replace(fit, registration=reg)
 
 
 def candidate_seeds(

@@ -22,6 +22,7 @@ from meshrec.recognition.joint import (
     log_likelihood_bound,
     pooled_noise,
     register_touches,
+    search_pairs,
 )
 from meshrec.recognition.scoring import (
     ModelScore,
@@ -367,8 +368,56 @@ def _rank_joint(touches, models, method, progress, geometries):
             fits[model.name] = register_touches(
                 touches, model, geometries, upto=upto, previous=fit, method=method, noise=noise
             )
+    _search_adequately(touches, models, geometries, fits, noise, n, method)
     rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
     return _ranked(rec, [f.registration for f in fits.values()]), fits
+
+
+def _search_adequately(touches, models, geometries, fits: dict, noise: float, n: int, method):
+    """Search again, from pairs of touches, every model whose joint pose may have been missed.
+
+    The scores trust each model's best joint fit. On look-alike shapes touched with short
+    noisy curves each touch alone fits every model at many places, and the right model's
+    joint search can end in a wrong basin while a wrong model's happens to fit: a wrong
+    and confident answer. So, in rounds until none qualifies (each model searched once;
+    an order-free step over all the fits): a model more than ``defaults.PAIR_SEARCH_GAP``
+    below the best log-likelihood is registered on every touch alone; if its best
+    conceivable fit (:func:`~meshrec.recognition.joint.log_likelihood_bound`) still comes
+    within that gap of the best, it is searched again from pairs of touches
+    (:func:`~meshrec.recognition.joint.search_pairs`). ``fits`` is updated in place.
+    """
+    searched = set()
+    gap = defaults.PAIR_SEARCH_GAP
+    while True:
+        names = list(fits)
+        ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
+        leader = float(np.max(ll))
+        todo = [
+            m
+            for m in models
+            if m.name not in searched
+            and not fits[m.name].registration.rejected
+            and ll[names.index(m.name)] < leader - gap
+            and log_likelihood_bound(fits[m.name], touches, noise) >= leader - gap
+        ]
+        if not todo:
+            return
+        for model in todo:
+            searched.add(model.name)
+            fit = fits[model.name]
+            if fit.registered < len(touches):
+                fit = register_touches(
+                    touches,
+                    model,
+                    geometries,
+                    upto=len(touches),
+                    previous=fit,
+                    method=method,
+                    noise=noise,
+                )
+            if log_likelihood_bound(fit, touches, noise) >= leader - gap:
+                fit = search_pairs(touches, model, geometries, fit)
+            fits[model.name] = fit
 
 
 # --------------------------------------------------------------------------- the verdict

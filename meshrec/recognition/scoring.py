@@ -379,7 +379,9 @@ def decide(
     noise estimate and its chi-square tail (:func:`fit_p_value`) is below
     ``defaults.UNKNOWN_P_VALUE``. Otherwise the plausible set (:func:`plausible_set` at
     ``defaults.VERDICT_COVERAGE``) decides: one model is ``recognised``, more are
-    ``ambiguous``.
+    ``ambiguous``. One model is not ``recognised`` but ``ambiguous`` (with the runner-up)
+    when it fits worse than the noise allows (chi-square tail below
+    ``defaults.RECOGNISE_P_VALUE``) and the library holds other models.
 
     Parameters
     ----------
@@ -428,6 +430,20 @@ def decide(
             ratio,
         )
     best = int(np.argmax(p))
+    if len(plausible) == 1 and pval < defaults.RECOGNISE_P_VALUE and len(names) > 1:
+        # One model stands out, but even it fits worse than the noise allows: its rivals'
+        # probabilities rest on their best fits found, and a better pose of one of them
+        # may have been missed (or the object is none of them). Not confident.
+        second = names[int(np.argsort(-p, kind="stable")[1])]
+        return Verdict(
+            "ambiguous",
+            (plausible[0], second),
+            f"{plausible[0]} fits best (probability {p[best]:.3f}) but worse than the noise "
+            f"allows ({ratio:.3g} times the noise, chi-square p = {pval:.2g}): a better fit "
+            f"of another model, such as {second}, may have been missed, or the object is "
+            "not in the library; touch again elsewhere to decide",
+            ratio,
+        )
     if len(plausible) == 1:
         return Verdict(
             "recognised",
