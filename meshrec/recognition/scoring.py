@@ -455,7 +455,7 @@ def decide(
     return Verdict(
         "ambiguous",
         plausible,
-        f"the touch cannot separate {len(plausible)} models ({', '.join(plausible)}): they "
+        f"the data cannot separate {len(plausible)} models ({', '.join(plausible)}): they "
         f"fit about equally well (best probability {p[best]:.3f}); touch again elsewhere to "
         "decide",
         ratio,
