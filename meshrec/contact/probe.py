@@ -116,4 +116,3 @@ def surface_geometry(geometry: LocalGeometry, probe_radius: float) -> LocalGeome
         condition=geometry.condition,
         noise_rms=geometry.noise_rms,
     )
-

@@ -301,8 +301,8 @@ class TouchData:
     @classmethod
     def from_dict(cls, obj, source: str | None = None, label: str | None = None) -> TouchData:
         """A touch from a parsed JSON object ``{"curves": [...], "contact"?: [...],
-        "normal"?: [...], "probe_radius"?: r}``, checked as :meth:`from_json` checks a file's (it reads files
-        through this).
+        "normal"?: [...], "probe_radius"?: r}``, checked as :meth:`from_json` checks a
+        file's (it reads files through this).
 
         Parameters
         ----------
