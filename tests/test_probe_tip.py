@@ -298,3 +298,46 @@ def test_touches_with_different_radii_are_refused(models):
     b = meshrec.TouchData(curves=b.curves, probe_radius=0.2)
     with pytest.raises(ValueError, match="different probe_radius"):
         meshrec.recognize([a, b], list(models.values()))
+
+
+# ---------------------------------------------------------------------------- command line
+def test_the_command_line_simulates_and_recognises_with_a_tip(models, tmp_path, capsys):
+    from meshrec.app.cli import main
+
+    folder = models["tube"].path.parent
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    touch = tmp_path / "touch.json"
+    simulate = ["simulate", str(models["tube"].path), "-o", str(touch), "--seed", "1"]
+    simulate += ["--noise", "0.001", "--length", "0.6", "--probe-radius", "0.1"]
+    assert main(simulate) == 0
+    assert "ball centres of a tip of radius 0.1" in capsys.readouterr().out
+    radii = np.linalg.norm(meshrec.TouchData.from_file(touch).points, axis=1)
+    assert radii.max() > 1.0  # moved by a random rigid motion: only a weak check here
+    recognise = ["recognize", str(touch), "--models", str(folder), "--json", *cache]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main([*recognise, "--probe-radius", "0.1"]) == 0
+        told = json.loads(capsys.readouterr().out)
+        assert main(recognise) == 0
+        untold = json.loads(capsys.readouterr().out)
+    assert told["probe_radius"] == 0.1
+    assert told["best"] == "tube"
+    assert not any("ball tip" in w for w in told["warnings"])
+    assert untold["probe_radius"] == 0.0
+    assert any("a ball tip? use --probe-radius" in w for w in untold["warnings"])
+
+
+def test_the_command_line_refuses_a_negative_radius(models, tmp_path, capsys):
+    from meshrec.app.cli import main
+
+    sim = _touch(models["tube"], 0.0)
+    sim.touch.to_file(tmp_path / "touch.json")
+    folder = str(models["tube"].path.parent)
+    args = ["recognize", str(tmp_path / "touch.json"), "--models", folder, "--probe-radius"]
+    assert main([*args, "-0.5", "--cache-dir", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err
+    assert "--probe-radius must be >= 0" in err
+    assert len(err.strip().splitlines()) == 1
+    out = ["simulate", str(models["tube"].path), "-o", str(tmp_path / "x.csv")]
+    assert main([*out, "--probe-radius", "nan"]) == 2
+    assert "probe_radius must be finite" in capsys.readouterr().err
