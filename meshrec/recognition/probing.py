@@ -14,7 +14,6 @@ import math
 import warnings
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from meshrec import defaults
 from meshrec.contact.probe import ProbeOffsetWarning, check_probe_radius
@@ -96,12 +95,12 @@ def probe_offset(touch, model, T_model_touch, noise: float) -> tuple[float, floa
 
     The data are refined rigidly onto the model's surface offset by R (from
     ``T_model_touch``) for R in ``[0, R_max]``, ``R_max`` the smaller of
-    ``defaults.PROBE_OFFSET_MAX_FRACTION`` of the curves' half-length and of the model's
-    size, and the R of least RMS is kept (scipy's bounded Brent). One touch cannot
-    show the offset itself (a translation along the normal absorbs it), only through
-    curvature: the offset surface's principal radii are larger by R on convex parts and
-    smaller on concave ones, the same R everywhere, which no rigid motion of the surface
-    reproduces where the curvature is not flat.
+    ``defaults.PROBE_OFFSET_MAX_FRACTION`` of the touch's size and of the model's, and
+    the R of least RMS among those tried is kept (a parabola's vertex, see the code).
+    One touch cannot show the offset itself (a translation along the normal absorbs
+    it), only through curvature: the offset surface's principal radii are larger by R on
+    convex parts and smaller on concave ones, the same R everywhere, which no rigid
+    motion of the surface reproduces where the curvature is not flat.
 
     Parameters
     ----------
@@ -121,25 +120,40 @@ def probe_offset(touch, model, T_model_touch, noise: float) -> tuple[float, floa
         RMS distance at R = 0 and at ``radius``, both after rigid refinement.
     """
     points = touch.points
-    g_half = _half_length(points)
-    r_max = defaults.PROBE_OFFSET_MAX_FRACTION * min(g_half, float(model.mesh.scale))
+    r_max = defaults.PROBE_OFFSET_MAX_FRACTION * min(_half_length(points), model.mesh.scale)
     cache: dict[float, float] = {}
 
     def rms_at(r: float) -> float:
-        r = float(r)
+        r = float(min(max(r, 0.0), r_max))
         if r not in cache:
             cache[r] = refine_rigid(probe_model(model, r), points, T_model_touch).rms
         return cache[r]
 
-    rms0 = rms_at(0.0)
-    res = minimize_scalar(
-        rms_at,
-        bounds=(0.0, r_max),
-        method="bounded",
-        options={"xatol": max(0.05 * noise, 1e-12 * r_max), "maxiter": 30},
-    )
-    radius = float(res.x)
-    return radius, rms0, min(rms_at(radius), rms0)
+    # The residuals at the refined pose are nearly linear in R (the offset moves every
+    # point along its normal; the pose follows linearly), so the summed squares are
+    # nearly a parabola in R: its vertex through three samples, then once more through
+    # the three samples nearest it (five rigid refinements, where a bounded Brent search
+    # took ten to fifteen for the same answer, 0.3 to 0.5 s on the bundled objects).
+    h = 0.25 * r_max
+    for r in (0.0, h, 2.0 * h):
+        rms_at(r)
+    for _ in range(2):
+        best = min(cache, key=cache.get)
+        near = sorted(cache, key=lambda r: abs(r - best))[:3]
+        rms_at(_vertex({r: cache[r] for r in near}))
+    radius = min(cache, key=cache.get)
+    return radius, cache[0.0], cache[radius]
+
+
+def _vertex(samples: dict[float, float]) -> float:
+    """The R of least summed squares on the parabola through three samples ``R -> rms``
+    (the best sample where the parabola opens downwards)."""
+    r = np.array(sorted(samples))
+    ss = np.array([samples[x] ** 2 for x in r])
+    a, b, _ = np.polyfit(r, ss, 2)
+    if not a > 0:
+        return float(r[np.argmin(ss)])
+    return float(-b / (2.0 * a))
 
 
 def _half_length(points: np.ndarray) -> float:
