@@ -30,6 +30,7 @@ _WHERE = {
     "RoughFitWarning": "meshrec.contact.geometry",
     "estimate_local_geometry": "meshrec.contact.geometry",
     "find_common_point": "meshrec.contact.geometry",
+    "ProbeOffsetWarning": "meshrec.contact.probe",
     "TouchData": "meshrec.io.touch",
     "Truth": "meshrec.io.truth",
     "read_truth": "meshrec.io.truth",
@@ -85,6 +86,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
         estimate_local_geometry,
         find_common_point,
     )
+    from meshrec.contact.probe import ProbeOffsetWarning
     from meshrec.io.touch import TouchData
     from meshrec.io.truth import Truth, read_truth, write_truth
     from meshrec.model.index import IndexParams, ModelIndex
@@ -124,6 +126,7 @@ __all__ = [
     "ModelScore",
     "PhiBrackets",
     "PoseHypothesis",
+    "ProbeOffsetWarning",
     "Recognition",
     "RefinedSearch",
     "Registration",

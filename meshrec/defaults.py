@@ -473,3 +473,14 @@ PAIR_REFINE_SEEDS = 32
 #: best, is searched again from pairs of touches before the scores are trusted. Its joint
 #: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
 PAIR_SEARCH_GAP = 3.0
+
+# --- ball-tipped probes (meshrec.contact.probe, meshrec.recognition.probing) ---------------
+#: A touch recognised without a probe radius is tested for an undeclared ball tip: the
+#: data are refined onto the best model's surface offset by R for R up to this fraction of
+#: the touch's size (half its largest extent from the centroid; and of the model's size).
+PROBE_OFFSET_MAX_FRACTION = 0.5
+#: ... and a ProbeOffsetWarning is raised when the best R improves the fit by more than
+#: this chi-squared value (n (rms0^2 - rms^2) / noise^2, one added parameter) ...
+PROBE_OFFSET_CHI2 = 25.0
+#: ... and R is more than this many noise deviations.
+PROBE_OFFSET_MIN_NOISE = 3.0

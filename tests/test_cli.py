@@ -43,6 +43,7 @@ SCHEMA = {
         "noise": {"type": "number", "exclusiveMinimum": 0},
         "reason": {"type": "string", "minLength": 1},
         "warnings": {"type": "array", "items": {"type": "string"}},
+        "probe_radius": {"type": "number", "minimum": 0},
         "touch": {
             "type": "object",
             "required": ["file", "points", "curves", "contact", "normal", "K", "H"],

@@ -116,6 +116,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--contact", type=_vector, help="the curves' common point X,Y,Z")
     r.add_argument("--normal", type=_vector, help="approximate outward normal X,Y,Z")
+    r.add_argument(
+        "--probe-radius",
+        type=float,
+        default=None,
+        metavar="R",
+        help="the probe's ball-tip radius (touch units): the curves are the ball's centres",
+    )
     r.add_argument("--top", type=int, default=None, help="show only the N best models")
     r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     r.add_argument(
@@ -147,6 +154,13 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--points", type=int, default=defaults.SIM_POINTS, help="points per curve")
     s.add_argument("--length", type=float, default=None, help="curve length (model units)")
     s.add_argument("--contact", type=_vector, help="contact X,Y,Z on the model")
+    s.add_argument(
+        "--probe-radius",
+        type=float,
+        default=0.0,
+        metavar="R",
+        help="ball-tip radius (model units): write the ball's centres, not surface points",
+    )
     add_viz_parsers(sub, models_arg, touch_arg)
     add_advice_parser(sub, models_arg, touch_arg)
     add_serve_parser(sub, models_arg)
@@ -171,10 +185,11 @@ def recognition_to_json(
     -------
     dict
         Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``, ``warnings``,
-        ``touch`` (the first touch), ``touches`` (one summary per touch, with ``rms``,
-        its RMS residual at the best model's pose) and ``ranking`` (each entry with
-        ``probability`` and ``poses``, a list of ``{"transform": T_model_touch,
-        "weight": w}``).
+        ``probe_radius`` (the ball-tip radius the data were compared with the models
+        for, models' units; 0 for a point probe), ``touch`` (the first touch),
+        ``touches`` (one summary per touch, with ``rms``, its RMS residual at the best
+        model's pose) and ``ranking`` (each entry with ``probability`` and ``poses``, a
+        list of ``{"transform": T_model_touch, "weight": w}``).
     """
     g = rec.geometry
     ranking = rec.ranking if top is None else rec.ranking[:top]
@@ -204,6 +219,7 @@ def recognition_to_json(
         "noise": float(rec.noise),
         "reason": rec.reason,
         "warnings": list(dict.fromkeys([*warnings, *rec.warnings])),
+        "probe_radius": float(rec.probe_radius),
         "touch": {
             "file": rec.touch.source,
             "points": rec.touch.n_points,
@@ -327,6 +343,7 @@ def _run_batch(args, names, folder, units) -> int:
         units=touch_units,
         models_units=units,
         method=args.method,
+        probe_radius=args.probe_radius,
     )
     if failed:
         raise ValueError(

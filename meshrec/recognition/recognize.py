@@ -15,6 +15,7 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.joint import (
     check_touch_sizes,
@@ -24,6 +25,7 @@ from meshrec.recognition.joint import (
     register_touches,
     search_pairs,
 )
+from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
 from meshrec.recognition.scoring import (
     ModelScore,
     WeightedPose,
@@ -84,6 +86,10 @@ class Recognition:
     touch_rms : tuple of float or None
         RMS point-to-surface distance of each touch at the best model's reported pose,
         model units (None when no model was registered).
+    probe_radius : float
+        The probe's ball-tip radius the data were compared with the models for (0: a
+        point probe): the contacts and poses are those of the surface, the distances
+        those to the surface offset by it.
     """
 
     touch: TouchData
@@ -101,6 +107,7 @@ class Recognition:
     touches: tuple[TouchData, ...] = ()
     geometries: tuple[LocalGeometry, ...] = ()
     touch_rms: tuple[float | None, ...] = ()
+    probe_radius: float = 0.0
 
     @property
     def best(self) -> Registration | None:
@@ -131,6 +138,7 @@ def recognize(
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
     geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
+    probe_radius: float | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -150,6 +158,14 @@ def recognize(
     geometry : LocalGeometry or sequence of LocalGeometry, optional
         The local geometry at each touch's contact, if already estimated (by
         :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
+    probe_radius : float, optional
+        Radius of the probe's ball tip, data units (the data are the ball's centres, on
+        the surface offset outwards by it): the models are compared with their offset
+        surfaces (:func:`meshrec.model.probe.probe_model`) and the curvatures at the
+        touch corrected (:func:`meshrec.contact.probe.surface_geometry`). Default: the
+        touches' own ``probe_radius`` (from the touch JSON), else 0 (a point probe).
+        Without a radius, data that fit a model's offset surface clearly better than
+        the surface itself raise a :class:`~meshrec.contact.probe.ProbeOffsetWarning`.
 
     Returns
     -------
@@ -176,8 +192,12 @@ def recognize(
         does not hold one LocalGeometry per touch, a touch's size is out of all
         proportion to every model's (a likely unit mismatch, see
         :func:`meshrec.recognition.units.check_units`) or to another touch's
-        (:func:`meshrec.recognition.joint.check_touch_sizes`), or the curves do not allow
-        an estimate of the local geometry.
+        (:func:`meshrec.recognition.joint.check_touch_sizes`), the curves do not allow
+        an estimate of the local geometry, ``probe_radius`` is negative or not finite,
+        the touches give different radii (or one other than ``probe_radius``), or a
+        touch with a ``normal`` is curved more tightly than the tip where it is convex
+        (``probe_radius`` at least its smallest radius of curvature: no ball of that
+        radius traces such data).
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -193,10 +213,18 @@ def recognize(
     models = list(library)
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
+    radius = touch_probe_radius(touches, probe_radius)
+    models = [probe_model(m, radius) for m in models]
     caught: list = []
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            if radius > 0.0:
+                geometries = tuple(
+                    g if g is not None else touch_geometry(t)
+                    for t, g in zip(touches, geometries, strict=True)
+                )
+                check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
                 rec = _rank(touches[0], models, method, progress, geometries[0])
                 rec = _with_verdict(rec, {}, models, method)
@@ -204,6 +232,8 @@ def recognize(
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
                 rec = _with_verdict(rec, fits, models, method)
             _warn_coarse(rec, models)
+            if radius == 0.0 and len(touches) == 1:
+                warn_probe_offset(rec, models)
     finally:
         # Pass every warning on as before (the caller's filters decide what is shown),
         # also when the recognition fails; the result keeps their text.
@@ -211,7 +241,9 @@ def recognize(
         for w in raised:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
-    return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+    return dataclasses.replace(
+        rec, warnings=texts, seconds=time.perf_counter() - t0, probe_radius=radius
+    )
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:
