@@ -16,6 +16,7 @@ from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.freedom import PoseFreedom, pose_freedom
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -35,7 +36,9 @@ from meshrec.recognition.scoring import (
     posterior,
 )
 from meshrec.recognition.units import check_units
+from meshrec.registration.objective import residuals
 from meshrec.registration.register import Registration, register, touch_geometry
+from meshrec.registration.transform import apply_transform
 from meshrec.registration.search import SEARCH_METHODS
 
 __all__ = ["Recognition", "recognize"]
@@ -84,6 +87,13 @@ class Recognition:
     touch_rms : tuple of float or None
         RMS point-to-surface distance of each touch at the best model's reported pose,
         model units (None when no model was registered).
+    pose_freedom : PoseFreedom or None
+        The rigid motions the data leave free at the best model's reported pose
+        (:func:`meshrec.recognition.freedom.pose_freedom`): a flat face leaves two slides
+        and a turn, a cylinder's side a slide and a turn. None when no model was
+        registered. When any motion is free the verdict is never ``recognised``: with one
+        plausible model it is ``ambiguous`` with that model alone, and the reason says the
+        model is named but the pose is not fixed.
     """
 
     touch: TouchData
@@ -101,6 +111,7 @@ class Recognition:
     touches: tuple[TouchData, ...] = ()
     geometries: tuple[LocalGeometry, ...] = ()
     touch_rms: tuple[float | None, ...] = ()
+    pose_freedom: PoseFreedom | None = None
 
     @property
     def best(self) -> Registration | None:
@@ -203,6 +214,7 @@ def recognize(
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
                 rec = _with_verdict(rec, fits, models, method)
+            rec = _with_pose_freedom(rec, models)
             _warn_coarse(rec, models)
     finally:
         # Pass every warning on as before (the caller's filters decide what is shown),
@@ -212,6 +224,76 @@ def recognize(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
     return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+
+
+def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
+    """The pose freedom at the best model's pose; a free pose is never ``recognised``.
+
+    A touch on a flat face fits its model equally well after any slide on the face or turn
+    about its normal: the reported pose is then one of a continuum, not a measurement. The
+    model may still be the only one that fits; the verdict is then ``ambiguous`` with that
+    model alone in ``plausible``, and the reason says so.
+    """
+    best = rec.best
+    if best is None or best.T_model_touch is None:
+        return rec
+    model = {m.name: m for m in models}[best.model]
+    points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
+    y = apply_transform(best.T_model_touch, points)
+    normals, over = _pose_normals(model, y)
+    if np.count_nonzero(~over) >= 6:
+        y, normals = y[~over], normals[~over]
+    freedom = pose_freedom(y, normals)
+    rec = dataclasses.replace(rec, pose_freedom=freedom)
+    if freedom.free == 0:
+        return rec
+    what = _freedom_phrase(freedom)
+    if rec.verdict == "recognised":
+        return dataclasses.replace(
+            rec,
+            verdict="ambiguous",
+            reason=(
+                f"only {best.model} fits the data (probability "
+                f"{rec.probabilities.get(best.model, float('nan')):.3f}), but "
+                f"the touch fixes its pose only up to {what}: the pose reported is one of "
+                "many that fit equally well; touch again across an edge or on a curved part "
+                "to fix it"
+            ),
+        )
+    return dataclasses.replace(
+        rec, reason=f"{rec.reason}; the best model's pose is free too ({what})"
+    )
+
+
+def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface normal at each point's closest point, and which points hang over a crease.
+
+    The normal is the residual's gradient (the smooth surface's normal). A point that
+    hangs over a crease, such as a flat touch overlapping a box's edge within the noise,
+    has a gradient pointing at the edge: a one-sided constraint that a slide away from
+    the edge does not feel. Such points (gradient more than ``defaults.POSE_EDGE_DEG`` off
+    the closest face's normal) are flagged, to be left out of the test.
+    """
+    grad = residuals(model, points).gradient
+    _, _, face = model.surface.closest_points(points)
+    face_normals = model.mesh.face_normals[face]
+    unit = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
+    cos = np.einsum("ij,ij->i", unit, face_normals)
+    return grad, cos < np.cos(np.radians(defaults.POSE_EDGE_DEG))
+
+
+def _freedom_phrase(freedom: PoseFreedom) -> str:
+    """E.g. "2 slides and 1 turn (about the axis (0, 0, 1) through (1, 2, 3))"."""
+    parts = []
+    if freedom.slides:
+        parts.append(f"{freedom.slides} slide{'s' if freedom.slides > 1 else ''}")
+    if freedom.turns:
+        axes = "; ".join(
+            f"axis {np.array2string(a, precision=3)} through {np.array2string(p, precision=4)}"
+            for a, p in zip(freedom.turn_axes, freedom.turn_points, strict=True)
+        )
+        parts.append(f"{freedom.turns} turn{'s' if freedom.turns > 1 else ''} ({axes})")
+    return " and ".join(parts)
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:
