@@ -352,11 +352,13 @@ POSE_FREE_RATIO = 5e-4
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
 POSE_TURN_FRACTION = 0.1
-#: A data point whose residual gradient is more than this many degrees off its closest
-#: face's normal hangs over a crease (a flat touch overlapping a box's edge within the
-#: noise): the pose-freedom test leaves it out (its pull towards the edge is one-sided). Below the smooth surface's crease angle (25 degrees), above the
-#: facet angles of the bundled curved models.
+#: A data point whose surface normal turns by more than this many degrees when it moves
+#: by POSE_EDGE_STEP times the points' spread along a tangent lies at a crease (a flat
+#: touch reaching a box's edge within the noise): the pose-freedom test leaves it out, as
+#: its constraint is one-sided. Above the facet angles of the bundled curved models.
 POSE_EDGE_DEG = 20.0
+#: ... the step of that probe, as a fraction of the points' RMS spread.
+POSE_EDGE_STEP = 0.02
 
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the

@@ -266,20 +266,32 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
 
 
 def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The surface normal at each point's closest point, and which points hang over a crease.
+    """The surface normal at each point's closest point, and which points lie at a crease.
 
-    The normal is the residual's gradient (the smooth surface's normal). A point that
-    hangs over a crease, such as a flat touch overlapping a box's edge within the noise,
-    has a gradient pointing at the edge: a one-sided constraint that a slide away from
-    the edge does not feel. Such points (gradient more than ``defaults.POSE_EDGE_DEG`` off
-    the closest face's normal) are flagged, to be left out of the test.
+    The normal is the residual's gradient (the smooth surface's normal). A point at a
+    crease, such as a flat touch that reaches a box's edge within the noise, has a normal
+    that jumps as it moves: a one-sided constraint (the touch may slide off the edge
+    inwards, not outwards) that the first-order test would count as a full one. Such points
+    (the normal turns by more than ``defaults.POSE_EDGE_DEG`` when the point moves by
+    ``defaults.POSE_EDGE_STEP`` times the points' spread along either tangent) are flagged,
+    to be left out of the test.
     """
     grad = residuals(model, points).gradient
-    _, _, face = model.surface.closest_points(points)
-    face_normals = model.mesh.face_normals[face]
     unit = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
-    cos = np.einsum("ij,ij->i", unit, face_normals)
-    return grad, cos < np.cos(np.radians(defaults.POSE_EDGE_DEG))
+    spread = float(np.sqrt(((points - points.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    step = defaults.POSE_EDGE_STEP * spread
+    # Two tangents per point, orthogonal to its normal.
+    helper = np.where(np.abs(unit[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(unit, helper)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    t2 = np.cross(unit, t1)
+    cos_limit = np.cos(np.radians(defaults.POSE_EDGE_DEG))
+    at_crease = np.zeros(len(points), dtype=bool)
+    for t in (t1, -t1, t2, -t2):
+        g = residuals(model, points + step * t).gradient
+        g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+        at_crease |= np.einsum("ij,ij->i", g, unit) < cos_limit
+    return grad, at_crease
 
 
 def _freedom_phrase(freedom: PoseFreedom) -> str:
