@@ -120,8 +120,9 @@ def pose_freedom(
     TypeError
         If ``points`` is not an array of real numbers.
     ValueError
-        If ``points`` is not (n, 3) finite with n >= 6 or its points all coincide, ``normals`` does not have the same
-        shape, is not finite or has a zero row, or ``ratio`` is not in (0, 1).
+        If ``points`` is not (n, 3) finite with n >= 6 or its points all coincide,
+        ``normals`` does not have the same shape, is not finite or has a zero row, or
+        ``ratio`` is not in (0, 1).
     """
     x = check_points(points, "points", min_rows=6)
     n = np.asarray(normals, dtype=np.float64)
@@ -180,5 +181,5 @@ def _orthonormal(vectors: np.ndarray) -> np.ndarray:
     """An orthonormal basis (rows) of the span of ``vectors`` (k, 3)."""
     if len(vectors) == 0:
         return np.zeros((0, 3))
-    u, s, vt = np.linalg.svd(vectors, full_matrices=False)
+    _, s, vt = np.linalg.svd(vectors, full_matrices=False)
     return vt[s > 1e-9 * max(float(s[0]), 1e-300)]

@@ -38,8 +38,8 @@ from meshrec.recognition.scoring import (
 from meshrec.recognition.units import check_units
 from meshrec.registration.objective import residuals
 from meshrec.registration.register import Registration, register, touch_geometry
-from meshrec.registration.transform import apply_transform
 from meshrec.registration.search import SEARCH_METHODS
+from meshrec.registration.transform import apply_transform
 
 __all__ = ["Recognition", "recognize"]
 
