@@ -41,6 +41,8 @@ _WHERE = {
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
     "TouchAdvice": "meshrec.recognition.advice",
+    "PoseFreedom": "meshrec.recognition.freedom",
+    "pose_freedom": "meshrec.recognition.freedom",
     "next_touch": "meshrec.recognition.advice",
     "JointFit": "meshrec.recognition.joint",
     "register_touches": "meshrec.recognition.joint",
@@ -93,6 +95,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
     from meshrec.recognition.advice import TouchAdvice, next_touch
+    from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
@@ -125,6 +128,7 @@ __all__ = [
     "ModelLibrary",
     "ModelScore",
     "PhiBrackets",
+    "PoseFreedom",
     "PoseHypothesis",
     "ProbeOffsetWarning",
     "Recognition",
@@ -153,6 +157,7 @@ __all__ = [
     "lookup_candidates",
     "next_touch",
     "phi_brackets",
+    "pose_freedom",
     "pose_hypotheses",
     "read_truth",
     "recognize",

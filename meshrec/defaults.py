@@ -339,6 +339,27 @@ RECOGNISE_P_VALUE = 0.01
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
 
+# --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
+#: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian
+#: of the point-to-surface residuals along it is below this fraction of the largest (rows
+#: [n, (x - c) / L x n], L the points' RMS spread). Measured with the default simulated
+#: touches (3 seeds each): a face of a box and the side of a fine cylinder give 1e-12 and
+#: 1e-6, the bundled sphere 6e-5 to 1.4e-4 (three turns about its centre, truly free);
+#: the most nearly free motion of the bundled ellipsoid 1.4e-3 to 9e-3, of the paper's
+#: monkey saddle 9e-3 to 3e-2. A 32-section trimesh cylinder's facets pin the turn about
+#: its axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
+POSE_FREE_RATIO = 5e-4
+#: A free twist counts as a turn when its rotational part is at least this (unit twists,
+#: rotation scaled by L); the rest are slides.
+POSE_TURN_FRACTION = 0.1
+#: A data point whose surface normal turns by more than this many degrees when it moves
+#: by POSE_EDGE_STEP times the points' spread along a tangent lies at a crease (a flat
+#: touch reaching a box's edge within the noise): the pose-freedom test leaves it out, as
+#: its constraint is one-sided. Above the facet angles of the bundled curved models.
+POSE_EDGE_DEG = 20.0
+#: ... the step of that probe, as a fraction of the points' RMS spread.
+POSE_EDGE_STEP = 0.02
+
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the
 #: least joint RMS at their starting pose first (each single-touch registration gives up

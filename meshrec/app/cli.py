@@ -243,6 +243,7 @@ def recognition_to_json(
             for t, tg, r in zip(rec.touches, rec.geometries, rec.touch_rms, strict=True)
         ],
         "ranking": [entry(r) for r in ranking],
+        "pose_freedom": None if rec.pose_freedom is None else rec.pose_freedom.to_dict(),
     }
 
 
@@ -281,8 +282,12 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
                 f"{r.seconds:>6.2f}  {c}\n"
             )
     out.write(f"{rec.reason}\n")
+    if rec.pose_freedom is not None:
+        out.write(f"pose: {rec.pose_freedom.description}\n")
     if rec.verdict == "recognised":
         what = rec.plausible[0]
+    elif rec.verdict == "ambiguous" and len(rec.plausible) == 1 and rec.pose_freedom:
+        what = f"{rec.plausible[0]}, but its pose is not fixed ({rec.pose_freedom.description})"
     elif rec.verdict == "ambiguous":
         what = " or ".join(rec.plausible)
     else:

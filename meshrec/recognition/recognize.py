@@ -17,6 +17,7 @@ from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.freedom import PoseFreedom, pose_freedom
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -37,8 +38,10 @@ from meshrec.recognition.scoring import (
     posterior,
 )
 from meshrec.recognition.units import check_units
+from meshrec.registration.objective import residuals
 from meshrec.registration.register import Registration, register, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
+from meshrec.registration.transform import apply_transform
 
 __all__ = ["Recognition", "recognize"]
 
@@ -90,6 +93,13 @@ class Recognition:
         The probe's ball-tip radius the data were compared with the models for (0: a
         point probe): the contacts and poses are those of the surface, the distances
         those to the surface offset by it.
+    pose_freedom : PoseFreedom or None
+        The rigid motions the data leave free at the best model's reported pose
+        (:func:`meshrec.recognition.freedom.pose_freedom`): a flat face leaves two slides
+        and a turn, a cylinder's side a slide and a turn. None when no model was
+        registered. When any motion is free the verdict is never ``recognised``: with one
+        plausible model it is ``ambiguous`` with that model alone, and the reason says the
+        model is named but the pose is not fixed.
     """
 
     touch: TouchData
@@ -108,6 +118,7 @@ class Recognition:
     geometries: tuple[LocalGeometry, ...] = ()
     touch_rms: tuple[float | None, ...] = ()
     probe_radius: float = 0.0
+    pose_freedom: PoseFreedom | None = None
 
     @property
     def best(self) -> Registration | None:
@@ -231,6 +242,7 @@ def recognize(
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
                 rec = _with_verdict(rec, fits, models, method)
+            rec = _with_pose_freedom(rec, models)
             _warn_coarse(rec, models)
             if radius == 0.0 and len(touches) == 1:
                 warn_probe_offset(rec, models)
@@ -244,6 +256,88 @@ def recognize(
     return dataclasses.replace(
         rec, warnings=texts, seconds=time.perf_counter() - t0, probe_radius=radius
     )
+
+
+def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
+    """The pose freedom at the best model's pose; a free pose is never ``recognised``.
+
+    A touch on a flat face fits its model equally well after any slide on the face or turn
+    about its normal: the reported pose is then one of a continuum, not a measurement. The
+    model may still be the only one that fits; the verdict is then ``ambiguous`` with that
+    model alone in ``plausible``, and the reason says so.
+    """
+    best = rec.best
+    if best is None or best.T_model_touch is None:
+        return rec
+    model = {m.name: m for m in models}[best.model]
+    points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
+    y = apply_transform(best.T_model_touch, points)
+    normals, over = _pose_normals(model, y)
+    if np.count_nonzero(~over) >= 6:
+        y, normals = y[~over], normals[~over]
+    freedom = pose_freedom(y, normals)
+    rec = dataclasses.replace(rec, pose_freedom=freedom)
+    if freedom.free == 0:
+        return rec
+    what = _freedom_phrase(freedom)
+    if rec.verdict == "recognised":
+        return dataclasses.replace(
+            rec,
+            verdict="ambiguous",
+            reason=(
+                f"only {best.model} fits the data (probability "
+                f"{rec.probabilities.get(best.model, float('nan')):.3f}), but "
+                f"the touch fixes its pose only up to {what}: the pose reported is one of "
+                "many that fit equally well; touch again across an edge or on a curved part "
+                "to fix it"
+            ),
+        )
+    return dataclasses.replace(
+        rec, reason=f"{rec.reason}; the best model's pose is free too ({what})"
+    )
+
+
+def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface normal at each point's closest point, and which points lie at a crease.
+
+    The normal is the residual's gradient (the smooth surface's normal). A point at a
+    crease, such as a flat touch that reaches a box's edge within the noise, has a normal
+    that jumps as it moves: a one-sided constraint (the touch may slide off the edge
+    inwards, not outwards) that the first-order test would count as a full one. Such points
+    (the normal turns by more than ``defaults.POSE_EDGE_DEG`` when the point moves by
+    ``defaults.POSE_EDGE_STEP`` times the points' spread along either tangent) are flagged,
+    to be left out of the test.
+    """
+    grad = residuals(model, points).gradient
+    unit = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
+    spread = float(np.sqrt(((points - points.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    step = defaults.POSE_EDGE_STEP * spread
+    # Two tangents per point, orthogonal to its normal.
+    helper = np.where(np.abs(unit[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(unit, helper)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    t2 = np.cross(unit, t1)
+    cos_limit = np.cos(np.radians(defaults.POSE_EDGE_DEG))
+    at_crease = np.zeros(len(points), dtype=bool)
+    for t in (t1, -t1, t2, -t2):
+        g = residuals(model, points + step * t).gradient
+        g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+        at_crease |= np.einsum("ij,ij->i", g, unit) < cos_limit
+    return grad, at_crease
+
+
+def _freedom_phrase(freedom: PoseFreedom) -> str:
+    """E.g. "2 slides and 1 turn (about the axis (0, 0, 1) through (1, 2, 3))"."""
+    parts = []
+    if freedom.slides:
+        parts.append(f"{freedom.slides} slide{'s' if freedom.slides > 1 else ''}")
+    if freedom.turns:
+        axes = "; ".join(
+            f"axis {np.array2string(a, precision=3)} through {np.array2string(p, precision=4)}"
+            for a, p in zip(freedom.turn_axes, freedom.turn_points, strict=True)
+        )
+        parts.append(f"{freedom.turns} turn{'s' if freedom.turns > 1 else ''} ({axes})")
+    return " and ".join(parts)
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:
