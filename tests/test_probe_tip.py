@@ -213,7 +213,11 @@ def test_recognition_with_the_tip_radius_finds_the_surface_contact(models, shape
     library = list(models.values())
     sim = _touch(models[shape], TIP, seed=1)
     rec, tip_warnings = _recognise(sim.touch, library, probe_radius=TIP)
-    assert rec.verdict == "recognised"
+    # a touch on the tube's side leaves a slide along its axis free: the model is named
+    # alone, the verdict ambiguous (its pose is not fixed)
+    free = rec.pose_freedom.free
+    assert rec.verdict == ("recognised" if free == 0 else "ambiguous")
+    assert rec.plausible == (shape,)
     assert rec.best.model == shape
     assert rec.probe_radius == TIP
     assert not tip_warnings
