@@ -49,6 +49,11 @@ class PoseFreedom:
         The Jacobian's singular values relative to the largest, descending.
     ratio : float
         The threshold below which a singular value counted as free.
+    symmetries : tuple of str
+        Free motions that map the whole model onto itself (for instance a turn about a
+        body of revolution's axis), left out of ``free``, ``slides`` and ``turns``: along
+        them every pose is the same placement of the object
+        (:func:`meshrec.recognition.symmetry.without_symmetries`). Empty when not tested.
     """
 
     free: int
@@ -59,6 +64,7 @@ class PoseFreedom:
     turn_points: np.ndarray
     singular_values: np.ndarray
     ratio: float
+    symmetries: tuple[str, ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -69,7 +75,7 @@ class PoseFreedom:
     def description(self) -> str:
         """A short phrase: "fixed", or e.g. "free: 2 slides and 1 turn"."""
         if self.free == 0:
-            return "fixed"
+            return "fixed up to the model's symmetry" if self.symmetries else "fixed"
         words = []
         if self.slides:
             words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
@@ -79,7 +85,8 @@ class PoseFreedom:
 
     def to_dict(self) -> dict:
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
-        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``."""
+        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``,
+        ``symmetries``."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -90,6 +97,7 @@ class PoseFreedom:
             "turn_axes": self.turn_axes.tolist(),
             "turn_points": self.turn_points.tolist(),
             "singular_values": self.singular_values.tolist(),
+            "symmetries": list(self.symmetries),
         }
 
     def __repr__(self) -> str:
