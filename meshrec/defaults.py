@@ -473,3 +473,13 @@ PAIR_REFINE_SEEDS = 32
 #: best, is searched again from pairs of touches before the scores are trusted. Its joint
 #: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
 PAIR_SEARCH_GAP = 3.0
+
+# --------------------------------------------------------------------------- scale
+#: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
+#: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit
+#: direction: spherical harmonics up to this order), the range of its amplitude (fraction
+#: of the radius) and of the anisotropic scale along each axis.
+BLOB_SUBDIVISIONS = 4
+BLOB_DEGREE = 3
+BLOB_AMPLITUDE = (0.15, 0.35)
+BLOB_ANISOTROPY = (0.7, 1.3)

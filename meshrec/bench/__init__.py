@@ -11,17 +11,22 @@ from meshrec.bench.protocols import (
     paper_touch,
     run_trials,
 )
+from meshrec.bench.blobs import Blob, blob_set, make_blob, write_blobs
 from meshrec.bench.shapes import SHAPE_FAMILIES, Shape, make_shape, shape_set, write_shapes
 
 __all__ = [
+    "Blob",
     "OBJECT_SIDES",
     "SHAPE_FAMILIES",
     "Shape",
+    "blob_set",
     "Trial",
+    "make_blob",
     "make_shape",
     "object_localisation_error",
     "paper_touch",
     "run_trials",
     "shape_set",
+    "write_blobs",
     "write_shapes",
 ]
