@@ -153,7 +153,7 @@ def report(results: list[dict], args) -> str:
         "the touches measured (column `touches`).\n",
         "| models | index s/model | load s (warm) | library RSS MB | MB/model | touches "
         "| recognition s (serial) | s/model/touch | recognition s (workers) | right "
-        "| ICP x{} s/recognition | ratio meshrec/ICP | ICP right |".format(args.starts),
+        f"| ICP x{args.starts} s/recognition | ratio meshrec/ICP | ICP right |",
         "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in sorted(results, key=lambda r: r["models"]):

@@ -91,7 +91,8 @@ def make_blob(rng: np.random.Generator | int | None = None, name: str = "blob") 
     rotation = trimesh.transformations.random_rotation_matrix(gen.random(3))[:3, :3]
     vertices = (d * r[:, None] * scale) @ rotation.T
     out = trimesh.Trimesh(vertices, np.asarray(mesh.faces), process=False)
-    params = {"amplitude": amplitude, **{f"scale_{a}": float(s) for a, s in zip("xyz", scale)}}
+    params = {"amplitude": amplitude}
+    params.update({f"scale_{a}": float(s) for a, s in zip("xyz", scale, strict=True)})
     return Blob(name=name, params=params, mesh=out)
 
 
