@@ -4,6 +4,7 @@ The protocols are importable from here (``meshrec.bench.run_trials``); the basel
 need open3d, from :mod:`meshrec.bench.baseline`.
 """
 
+from meshrec.bench.blobs import Blob, blob_set, make_blob, write_blobs
 from meshrec.bench.protocols import (
     OBJECT_SIDES,
     Trial,
@@ -11,16 +12,15 @@ from meshrec.bench.protocols import (
     paper_touch,
     run_trials,
 )
-from meshrec.bench.blobs import Blob, blob_set, make_blob, write_blobs
 from meshrec.bench.shapes import SHAPE_FAMILIES, Shape, make_shape, shape_set, write_shapes
 
 __all__ = [
-    "Blob",
     "OBJECT_SIDES",
     "SHAPE_FAMILIES",
+    "Blob",
     "Shape",
-    "blob_set",
     "Trial",
+    "blob_set",
     "make_blob",
     "make_shape",
     "object_localisation_error",
