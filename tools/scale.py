@@ -113,9 +113,9 @@ def measure(n: int, args) -> dict:
             t0 = time.perf_counter()
             par = meshrec.recognize(sim.touch, library, workers=args.workers)
             row["workers_s"] = time.perf_counter() - t0
-            row["workers_same"] = [
-                (r.model, r.error) for r in par.ranking
-            ] == [(r.model, r.error) for r in rec.ranking] and par.verdict == rec.verdict
+            row["workers_same"] = [(r.model, r.error) for r in par.ranking] == [
+                (r.model, r.error) for r in rec.ranking
+            ] and par.verdict == rec.verdict
         if baseline is not None:
             others = [m for m in names if m != true][: args.baseline_models - 1]
             times, errors = [], {}
@@ -224,12 +224,20 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
     p.add_argument("--touches", type=int, default=3, help="touches per size (at most)")
-    p.add_argument("--budget", type=float, default=300.0,
-                   help="seconds of touches per size: stop after the touch that exceeds it")
+    p.add_argument(
+        "--budget",
+        type=float,
+        default=300.0,
+        help="seconds of touches per size: stop after the touch that exceeds it",
+    )
     p.add_argument("--workers", type=int, default=2, help="also measure with N processes")
     p.add_argument("--starts", type=int, default=256, help="multi-start ICP starts (0: none)")
-    p.add_argument("--baseline-models", type=int, default=5,
-                   help="models the baseline runs on per touch (the true one and others)")
+    p.add_argument(
+        "--baseline-models",
+        type=int,
+        default=5,
+        help="models the baseline runs on per touch (the true one and others)",
+    )
     p.add_argument("--data", default="/tmp/meshrec-scale", help="blobs and cache folder")
     p.add_argument("--json", default=str(ROOT / "reports" / "scale.json"))
     p.add_argument("--out", default=str(ROOT / "reports" / "scale.md"))

@@ -126,9 +126,7 @@ def blob_set(n: int, seed: int = 0) -> list[Blob]:
     ]
 
 
-def write_blobs(
-    n: int, folder: str | os.PathLike, seed: int = 0
-) -> list[Path]:
+def write_blobs(n: int, folder: str | os.PathLike, seed: int = 0) -> list[Path]:
     """Write ``blob_set(n, seed)`` as binary STL files into ``folder`` (created).
 
     Files already there with the right name are kept as they are (a blob depends only on

@@ -122,9 +122,7 @@ def pack_key(files: Sequence[Path], digests: Sequence[str], params: IndexParams)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def pack_dir(
-    files: Sequence[Path], key: str, cache_dir: str | os.PathLike | None = None
-) -> Path:
+def pack_dir(files: Sequence[Path], key: str, cache_dir: str | os.PathLike | None = None) -> Path:
     """The folder that holds (or would hold) the pack of ``key`` for these files.
 
     Parameters
