@@ -483,3 +483,10 @@ BLOB_SUBDIVISIONS = 4
 BLOB_DEGREE = 3
 BLOB_AMPLITUDE = (0.15, 0.35)
 BLOB_ANISOTROPY = (0.7, 1.3)
+#: Parallel recognition (meshrec.recognition.workers): local processes are used only for
+#: libraries of at least this many models (below, starting them costs more than they
+#: save); the models are split into this many chunks per worker (even loads, few round
+#: trips); seconds to wait for a Dask scheduler to answer.
+PARALLEL_MIN_MODELS = 8
+PARALLEL_CHUNKS_PER_WORKER = 4
+DASK_CONNECT_SECONDS = 10.0

@@ -35,7 +35,8 @@ from meshrec.recognition.scoring import (
     posterior,
 )
 from meshrec.recognition.units import check_units
-from meshrec.registration.register import Registration, register, touch_geometry
+from meshrec.recognition.workers import ModelWorkers
+from meshrec.registration.register import Registration, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
 
 __all__ = ["Recognition", "recognize"]
@@ -131,6 +132,8 @@ def recognize(
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
     geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
+    workers=None,
+    scheduler: str | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -150,6 +153,13 @@ def recognize(
     geometry : LocalGeometry or sequence of LocalGeometry, optional
         The local geometry at each touch's contact, if already estimated (by
         :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
+    workers : int or ModelWorkers or None
+        Where the per-model registrations run (:mod:`meshrec.recognition.workers`): None,
+        in this process; an int, that many local processes (for this call); a
+        :class:`~meshrec.recognition.workers.ModelWorkers` of this library, its workers.
+        The result is the same as a serial run's.
+    scheduler : str or None
+        The address of a Dask ``distributed`` scheduler to run them on (for this call).
 
     Returns
     -------
@@ -177,7 +187,9 @@ def recognize(
         proportion to every model's (a likely unit mismatch, see
         :func:`meshrec.recognition.units.check_units`) or to another touch's
         (:func:`meshrec.recognition.joint.check_touch_sizes`), or the curves do not allow
-        an estimate of the local geometry.
+        an estimate of the local geometry; or as
+        :class:`~meshrec.recognition.workers.ModelWorkers` for ``workers`` and
+        ``scheduler``.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -194,17 +206,20 @@ def recognize(
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
     caught: list = []
+    run, own = _runner(models, workers, scheduler)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0])
-                rec = _with_verdict(rec, {}, models, method)
+                rec = _rank(touches[0], models, method, progress, geometries[0], run)
+                rec = _with_verdict(rec, {}, models, method, run)
             else:
-                rec, fits = _rank_joint(touches, models, method, progress, geometries)
-                rec = _with_verdict(rec, fits, models, method)
+                rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
+                rec = _with_verdict(rec, fits, models, method, run)
             _warn_coarse(rec, models)
     finally:
+        if own:
+            run.close()
         # Pass every warning on as before (the caller's filters decide what is shown),
         # also when the recognition fails; the result keeps their text.
         raised = list(caught)
@@ -212,6 +227,19 @@ def recognize(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
     return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+
+
+def _runner(models: list, workers, scheduler) -> tuple[ModelWorkers, bool]:
+    """The workers to register the models with, and whether they are made (and closed) here."""
+    if isinstance(workers, ModelWorkers):
+        if scheduler is not None:
+            raise ValueError(
+                f"scheduler must be None when workers is a ModelWorkers, got {scheduler!r}"
+            )
+        return workers, False
+    if workers is None and scheduler is None:
+        workers = 1
+    return ModelWorkers(models, workers=workers, scheduler=scheduler), True
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:
@@ -262,7 +290,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry) -> Recognition:
+def _rank(touch, library, method, progress, geometry, run) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -273,11 +301,7 @@ def _rank(touch, library, method, progress, geometry) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = []
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        results.append(register(touch, model, geometry=geometry, method=method))
+    results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,
@@ -299,7 +323,7 @@ def _ranked(rec: Recognition, results) -> Recognition:
     return dataclasses.replace(rec, ranking=tuple(results))
 
 
-def _rank_joint(touches, models, method, progress, geometries):
+def _rank_joint(touches, models, method, progress, geometries, run):
     """Several touches: every model fitted at one pose to all, the needed touches alone.
 
     Per model (independently of the others) the first touch is registered alone; its
@@ -329,12 +353,13 @@ def _rank_joint(touches, models, method, progress, geometries):
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    firsts = {}
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        first = register(touches[0], model, geometry=geometries[0], method=method, trace=True)
-        firsts[model.name] = first_touch_fit(touches, model, first)
+    regs = run.register_each(
+        touches[0], models, geometries[0], method, trace=True, progress=progress
+    )
+    firsts = {
+        model.name: first_touch_fit(touches, model, first)
+        for model, first in zip(models, regs, strict=True)
+    }
     # The joint refinement, most promising model first (by the first touch's fit, then the
     # name: an order of the data, not of the library). A model whose first touch alone
     # already fits far worse than the best joint fit so far keeps its first touch's poses
@@ -470,13 +495,23 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
     )
 
 
-def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recognition:
+def _widened(rec: Recognition, fits: dict, models: dict, method: str, run) -> Recognition:
     """Register every model again with the (K, H) window widened; keep each one's better fit.
 
     With several touches, each is registered alone with the wider window; ``fits`` (the
     joint fits, by model) is updated in place where the wider pass fits better.
     """
     merged = []
+    wides = {}
+    if len(rec.touches) == 1:
+        regs = run.register_each(
+            rec.touch,
+            [models[reg.model] for reg in rec.ranking],
+            rec.geometry,
+            method,
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        )
+        wides = {reg.model: wide for reg, wide in zip(rec.ranking, regs, strict=True)}
     for reg in rec.ranking:
         if len(rec.touches) > 1:
             fit = register_touches(
@@ -491,13 +526,7 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recogni
             wide = fit.registration
         else:
             fit = None
-            wide = register(
-                rec.touch,
-                models[reg.model],
-                geometry=rec.geometry,
-                method=method,
-                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-            )
+            wide = wides[reg.model]
         if reg.rejected or (not wide.rejected and wide.error < reg.error):
             merged.append(wide)
             if fit is not None:
@@ -507,7 +536,9 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recogni
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(rec: Recognition, fits: dict, models: list, method: str) -> Recognition:
+def _with_verdict(
+    rec: Recognition, fits: dict, models: list, method: str, run=None
+) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
@@ -531,7 +562,9 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str) -> Re
         # patches of different curvature may mismatch every vertex's (K, H) of the right
         # model, so every model is registered again with the window widened.
         t1 = time.perf_counter()
-        rec = _widened(rec, fits, by_name, method)
+        if run is None:
+            run = ModelWorkers(models, workers=1)
+        rec = _widened(rec, fits, by_name, method, run)
         scores, noise = _score(rec)
         rec = _ordered(rec, scores)
         t_wide = time.perf_counter() - t1
