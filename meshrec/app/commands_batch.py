@@ -13,7 +13,7 @@ from meshrec.registration.register import touch_geometry
 __all__ = ["run_batch"]
 
 
-def _one(name, library, units, models_units, method, to_json) -> dict:
+def _one(name, library, units, models_units, method, to_json, workers=None) -> dict:
     """The JSON object of one touch file: the recognition, or an ``error``."""
     shown = STDIN_NAME if str(name) == STDIN else str(name)
     with warnings.catch_warnings(record=True) as caught:
@@ -24,7 +24,7 @@ def _one(name, library, units, models_units, method, to_json) -> dict:
                 geometry = touch_geometry(touch)
             except ValueError as exc:
                 raise ValueError(f"touch file {shown}: {exc}") from exc
-            rec = recognize(touch, library, method=method, geometry=geometry)
+            rec = recognize(touch, library, method=method, geometry=geometry, workers=workers)
             doc = {"file": shown, **to_json(rec)}
         except ValueError as exc:
             doc = {"file": shown, "error": error_message(exc)}
@@ -41,6 +41,7 @@ def run_batch(
     units: str | None = None,
     models_units: str | None = None,
     method: str = "lm",
+    workers=None,
 ) -> int:
     """Recognise every touch file against ``library``; one JSON line each on ``out``.
 
@@ -61,6 +62,8 @@ def run_batch(
     units, models_units : str or None
         The touches' and the models' length units (see ``--units``).
     method : {"lm", "steepest"}
+    workers : ModelWorkers or None
+        Where the per-model work runs (see :func:`meshrec.recognition.recognize.recognize`).
 
     Returns
     -------
@@ -69,7 +72,7 @@ def run_batch(
     """
     failed = 0
     for name in names:
-        doc = _one(name, library, units, models_units, method, to_json)
+        doc = _one(name, library, units, models_units, method, to_json, workers)
         failed += "error" in doc
         out.write(json.dumps(doc) + "\n")
         out.flush()

@@ -28,6 +28,7 @@ import threading
 import warnings
 
 from meshrec import defaults
+from meshrec.app.parallel import add_workers_args, model_workers
 
 __all__ = ["add_serve_parser", "create_app", "run_serve"]
 
@@ -53,6 +54,7 @@ def add_serve_parser(sub, models_arg) -> None:
         default=8765,
         help="port to listen on (default: 8765; 0 picks a free one, printed at start)",
     )
+    add_workers_args(s)
 
 
 class BadRequest(ValueError):
@@ -168,10 +170,17 @@ class Service:
     One recognition runs at a time (:attr:`lock`): see :func:`create_app` for why.
     """
 
-    def __init__(self, library, models_units: str | None, method: str = defaults.SEARCH_METHOD):
+    def __init__(
+        self,
+        library,
+        models_units: str | None,
+        method: str = defaults.SEARCH_METHOD,
+        workers=None,
+    ):
         self.library = library
         self.models_units = models_units
         self.method = method
+        self.workers = workers  # a ModelWorkers held for the service's life, or None
         self.lock = threading.Lock()
 
     def answer(self, job: dict, advice: bool) -> dict:
@@ -212,7 +221,13 @@ class Service:
                     except ValueError as exc:
                         raise ValueError(f"{name}: {exc}") from exc
                     touches.append(touch)
-                rec = recognize(touches, self.library, method=self.method, geometry=geometries)
+                rec = recognize(
+                    touches,
+                    self.library,
+                    method=self.method,
+                    geometry=geometries,
+                    workers=self.workers,
+                )
                 if advice:
                     found = next_touch(
                         rec, self.library, approach=job["approach"], rng=job["seed"]
@@ -366,7 +381,8 @@ def run_serve(args, err=None) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        ``models``, ``model_units``, ``cache_dir``, ``host``, ``port``.
+        ``models``, ``model_units``, ``cache_dir``, ``host``, ``port``, ``workers``,
+        ``scheduler``.
     err : text stream, optional
         Where the one start-up line goes (default: ``sys.stderr``).
 
@@ -399,10 +415,15 @@ def run_serve(args, err=None) -> int:
     folder = inputs.model_folder(args.models)
     units = inputs.model_units(folder, args.model_units)
     library = inputs.library(args, folder)  # indexed (or read from the cache) once, here
-    sock = _bind(args.host, args.port)
+    workers = model_workers(args, library)  # held for the service's life
+    try:
+        sock = _bind(args.host, args.port)
+    except BaseException:
+        workers.close()
+        raise
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
-    app = create_app(Service(library, units))
+    app = create_app(Service(library, units, workers=workers))
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
     server = uvicorn.Server(config)
     err.write(
@@ -414,4 +435,5 @@ def run_serve(args, err=None) -> int:
         server.run(sockets=[sock])
     finally:
         sock.close()
+        workers.close()
     return 0

@@ -162,6 +162,9 @@ def write_pack(
 ) -> Path | None:
     """Write the pack of a library's models (atomically), and remove its older packs.
 
+    A pack of the same key is replaced (the models were just loaded or built one by one,
+    for example by a forced rebuild: the pack must hold what they hold).
+
     Parameters
     ----------
     files : sequence of Path
@@ -188,8 +191,6 @@ def write_pack(
     """
     key = pack_key(files, digests, params)
     final = pack_dir(files, key, cache_dir)
-    if (final / _TOC).is_file():
-        return final
     try:
         records = [m.to_record() for m in models]
     except TypeError as exc:
@@ -222,10 +223,16 @@ def write_pack(
             np.save(tmp / f"{name}.npy", a, allow_pickle=False)
             toc["arrays"][name] = {"dtype": a.dtype.str, "shape": list(a.shape), "crc32": _crc(a)}
         (tmp / _TOC).write_text(json.dumps(toc, allow_nan=False))
+        # A pack of this key already there holds other build records (a forced rebuild):
+        # moved aside, then replaced (a reader meanwhile misses, and loads model by model).
+        old = final.parent / f".{final.name}.{os.getpid()}.old"
+        if final.exists():
+            os.rename(final, old)
         try:
             os.rename(tmp, final)
-        except OSError:  # another process wrote it first: theirs is as good
+        except OSError:  # another process wrote it in between: theirs is as good
             shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
     except (OSError, ValueError) as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         warnings.warn(
