@@ -13,7 +13,8 @@ def test_blobs_are_closed_smooth_star_shaped_and_distinct():
     for b in blobs:
         m = b.mesh
         assert len(m.faces) == 20 * 4**defaults.BLOB_SUBDIVISIONS
-        assert m.is_watertight and m.is_winding_consistent
+        assert m.is_watertight
+        assert m.is_winding_consistent
         assert m.volume > 0  # outward normals
         # star-shaped about the origin: every face faces away from it
         centres = m.triangles_center
@@ -42,7 +43,8 @@ def test_write_blobs_writes_once(tmp_path):
     assert [p.name for p in paths] == ["blob_0_0000.stl", "blob_0_0001.stl"]
     stamp = paths[0].stat().st_mtime_ns
     more = write_blobs(3, tmp_path / "lib")
-    assert more[:2] == paths and more[0].stat().st_mtime_ns == stamp
+    assert more[:2] == paths
+    assert more[0].stat().st_mtime_ns == stamp
     assert not list((tmp_path / "lib").glob(".*"))  # no temporary file left
 
 

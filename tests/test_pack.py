@@ -45,7 +45,8 @@ def _same(a, b):
             np.testing.assert_array_equal(left, right)
         np.testing.assert_array_equal(x.surface.edge_bulge, y.surface.edge_bulge)
         assert x.build_seconds == y.build_seconds
-        assert x.path == y.path and x.params == y.params
+        assert x.path == y.path
+        assert x.params == y.params
         # the same surface queries
         p = np.random.default_rng(0).normal(size=(20, 3))
         for u, v in zip(x.surface.closest_points(p), y.surface.closest_points(p), strict=True):
@@ -62,7 +63,8 @@ def test_pack_round_trip_equals_the_per_model_load(folder, tmp_path):
         packed = ModelLibrary.from_folder(folder, cache_dir=cache)
         rebuilt = ModelLibrary.from_folder(folder, cache_dir=cache, force=True)
         repacked = ModelLibrary.from_folder(folder, cache_dir=cache)
-    assert not list(folder.glob("*.npy")) and not (folder / "packs").exists()
+    assert not list(folder.glob("*.npy"))
+    assert not (folder / "packs").exists()
     _same(built, packed)
     # a forced rebuild replaces the pack (new build records)
     assert [m.build_seconds for m in rebuilt] != [m.build_seconds for m in built]
