@@ -99,6 +99,14 @@ def measure(n: int, args) -> dict:
     if args.starts > 0 and args.baseline_models > 0:
         from meshrec.bench import baseline as baseline
 
+    workers = None
+    if args.workers > 1:
+        from meshrec.recognition.workers import ModelWorkers
+
+        t0 = time.perf_counter()
+        workers = ModelWorkers(library, workers=args.workers, cache_dir=cache)
+        out["workers_start_s"] = time.perf_counter() - t0
+        out["workers_mode"] = workers.mode
     t_start = time.perf_counter()
     for seed in range(args.touches):
         true = names[(seed * 7919) % n]
@@ -109,9 +117,9 @@ def measure(n: int, args) -> dict:
         row["serial_s"] = time.perf_counter() - t0
         row["serial_best"] = rec.best.model if rec.best is not None else None
         row["verdict"] = rec.verdict
-        if args.workers > 1:
+        if workers is not None:
             t0 = time.perf_counter()
-            par = meshrec.recognize(sim.touch, library, workers=args.workers)
+            par = meshrec.recognize(sim.touch, library, workers=workers)
             row["workers_s"] = time.perf_counter() - t0
             row["workers_same"] = [(r.model, r.error) for r in par.ranking] == [
                 (r.model, r.error) for r in rec.ranking
@@ -135,6 +143,9 @@ def measure(n: int, args) -> dict:
         print(f"  n={n} touch {seed}: {row}", file=sys.stderr, flush=True)
         if time.perf_counter() - t_start > args.budget:
             break
+    if workers is not None:
+        workers.close()
+    out["load_average"] = os.getloadavg()[0]
     return out
 
 
@@ -153,8 +164,9 @@ def report(results: list[dict], args) -> str:
         "the touches measured (column `touches`).\n",
         "| models | index s/model | load s (warm) | library RSS MB | MB/model | touches "
         "| recognition s (serial) | s/model/touch | recognition s (workers) | right "
-        f"| ICP x{args.starts} s/recognition | ratio meshrec/ICP | ICP right |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        f"| ICP x{args.starts} s/recognition | ratio meshrec/ICP | ICP right "
+        "| workers start s | load average |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in sorted(results, key=lambda r: r["models"]):
         n, t = r["models"], r["touches"]
@@ -181,7 +193,8 @@ def report(results: list[dict], args) -> str:
             f"| {n} | {r['index_median_s']:.3f} | {r['load_s']:.3f} "
             f"| {r['rss_library_mb']:.0f} | {r['rss_library_mb'] / n:.2f} | {len(t)} "
             f"| {_fmt(serial)} | {serial / n:.3f} | {workers} | {right}/{len(t)} "
-            f"| {base} | {ratio} | {bright} |"
+            f"| {base} | {ratio} | {bright} "
+            f"| {r.get('workers_start_s', float('nan')):.2f} | {r.get('load_average', 0):.1f} |"
         )
     out.append("")
     return "\n".join(out)

@@ -8,9 +8,10 @@ A :class:`ModelWorkers` holds the library and the workers:
 
 * ``workers=1`` (and no scheduler): every model in this process;
 * ``workers=N``: a pool of ``N`` local processes
-  (:class:`concurrent.futures.ProcessPoolExecutor`, started with "spawn"); each process
-  loads the library once, when it starts, from the same files and cache (the library's
-  consolidated pack, :mod:`meshrec.model.pack`, makes that fast), and keeps it;
+  (:class:`concurrent.futures.ProcessPoolExecutor`, started with "spawn" when the
+  ModelWorkers is made); each process loads the library once, when it starts, from the
+  same files and cache (the library's consolidated pack, :mod:`meshrec.model.pack`, makes
+  that fast), and keeps it;
 * ``scheduler="tcp://host:8786"``: the models' work runs on a Dask ``distributed`` cluster
   (scheduler and workers started with Dask's own ``dask scheduler`` and ``dask worker``);
   each Dask worker process loads the library once, on first use, and keeps it. The workers
@@ -18,8 +19,8 @@ A :class:`ModelWorkers` holds the library and the workers:
   the same meshrec version.
 
 Every worker checks that the models it loaded are the ones of the caller's library (name,
-size and the build time recorded in the index): a model file changed since the library was
-loaded is an error, not a silently different answer. Hold one :class:`ModelWorkers` for
+sizes and a CRC-32 of the vertices, faces and curvatures): a model file changed since the
+library was loaded is an error, not a silently different answer. Hold one :class:`ModelWorkers` for
 many recognitions (a service does); :func:`meshrec.recognition.recognize.recognize` makes
 a short-lived one when given ``workers=`` or ``scheduler=``.
 """
@@ -30,10 +31,13 @@ import multiprocessing
 import os
 import threading
 import warnings
+import zlib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from meshrec import defaults
 from meshrec.io.checks import check_instance
@@ -69,16 +73,20 @@ class _Spec:
 
 
 def _fingerprint(model: ModelIndex) -> tuple:
-    """What identifies a model's index (its cache record) cheaply."""
-    return (model.name, len(model.mesh.vertices), len(model.mesh.faces), model.build_seconds)
+    """What identifies a model's index: its name, sizes and a CRC-32 of its main arrays
+    (the same file indexed with the same parameters gives the same one, in any cache)."""
+    crc = 0
+    for a in (model.mesh.vertices, model.mesh.faces, model.curvature.k1, model.curvature.k2):
+        crc = zlib.crc32(np.ascontiguousarray(a).view(np.uint8).reshape(-1), crc)
+    return (model.name, len(model.mesh.vertices), len(model.mesh.faces), crc)
 
 
-#: The libraries loaded in this (worker) process, by spec.
-_LOADED: dict[_Spec, dict[str, ModelIndex]] = {}
+#: The libraries loaded in this (worker) process, by spec: name -> (model, fingerprint).
+_LOADED: dict[_Spec, dict[str, tuple[ModelIndex, tuple]]] = {}
 _LOADED_LOCK = threading.Lock()
 
 
-def _load(spec: _Spec) -> dict[str, ModelIndex]:
+def _load(spec: _Spec) -> dict[str, tuple[ModelIndex, tuple]]:
     """The models of ``spec``, loaded once per process."""
     with _LOADED_LOCK:
         models = _LOADED.get(spec)
@@ -95,7 +103,7 @@ def _load(spec: _Spec) -> dict[str, ModelIndex]:
                     lib = ModelLibrary.from_files(
                         spec.files, params=spec.params, cache_dir=spec.cache_dir
                     )
-            models = {m.name: m for m in lib}
+            models = {m.name: (m, _fingerprint(m)) for m in lib}
             _LOADED[spec] = models
         return models
 
@@ -114,9 +122,8 @@ def _register_chunk(spec: _Spec, fingerprints, touch, geometry, method, lookup_s
     models = _load(spec)
     out = []
     for fp in fingerprints:
-        model = models.get(fp[0])
-        if model is None or _fingerprint(model) != tuple(fp):
-            have = None if model is None else _fingerprint(model)
+        model, have = models.get(fp[0], (None, None))
+        if have != tuple(fp):
             raise ValueError(
                 f"model {fp[0]!r} differs in the worker (loaded {have}, expected {tuple(fp)}): "
                 "its file changed since the library was loaded, or the worker sees other files"
@@ -204,6 +211,7 @@ class ModelWorkers:
                 f"library's models must share one IndexParams, got {len(params)} different"
             )
         self.models = models
+        self._by_name = {m.name: m for m in models}
         self._fingerprints = {m.name: _fingerprint(m) for m in models}
         folder = getattr(library, "folder", None)
         self._spec = _Spec(
@@ -228,6 +236,10 @@ class ModelWorkers:
             )
             self.mode = "processes"
             self.workers = workers
+            # Start every process now (each loads the library once): the first
+            # recognition then costs what the others do.
+            for f in [self._pool.submit(_warm, self._spec) for _ in range(workers)]:
+                f.result()
         else:
             self.mode = "serial"
             self.workers = 1
@@ -294,7 +306,8 @@ class ModelWorkers:
         """
         models = list(models)
         for m in models:
-            if self._fingerprints.get(m.name) != _fingerprint(m):
+            known = self._by_name.get(m.name)
+            if known is not m and self._fingerprints.get(m.name) != _fingerprint(m):
                 raise ValueError(f"models must belong to the workers' library, got {m.name!r}")
         n = len(models)
         if self.mode == "serial" or n == 0:
@@ -324,7 +337,7 @@ class ModelWorkers:
                 self._client.submit(
                     _register_chunk,
                     self._spec,
-                    [_fingerprint(models[i]) for i in c],
+                    [self._fingerprints[models[i].name] for i in c],
                     touch,
                     *args,
                     pure=False,
@@ -337,7 +350,7 @@ class ModelWorkers:
                 self._pool.submit(
                     _register_chunk,
                     self._spec,
-                    [_fingerprint(models[i]) for i in c],
+                    [self._fingerprints[models[i].name] for i in c],
                     touch,
                     *args,
                 )
