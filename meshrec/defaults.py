@@ -518,3 +518,19 @@ PROBE_OFFSET_MAX_FRACTION = 0.5
 PROBE_OFFSET_CHI2 = 25.0
 #: ... and R is more than this many noise deviations.
 PROBE_OFFSET_MIN_NOISE = 3.0
+# --------------------------------------------------------------------------- scale
+#: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
+#: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit
+#: direction: spherical harmonics up to this order), the range of its amplitude (fraction
+#: of the radius) and of the anisotropic scale along each axis.
+BLOB_SUBDIVISIONS = 4
+BLOB_DEGREE = 3
+BLOB_AMPLITUDE = (0.15, 0.35)
+BLOB_ANISOTROPY = (0.7, 1.3)
+#: Parallel recognition (meshrec.recognition.workers): local processes are used only for
+#: libraries of at least this many models (below, starting them costs more than they
+#: save); the models are split into this many chunks per worker (even loads, few round
+#: trips); seconds to wait for a Dask scheduler to answer.
+PARALLEL_MIN_MODELS = 8
+PARALLEL_CHUNKS_PER_WORKER = 4
+DASK_CONNECT_SECONDS = 10.0

@@ -24,6 +24,7 @@ from meshrec._version import __version__
 from meshrec.app.commands_advice import add_advice_parser
 from meshrec.app.commands_serve import add_serve_parser
 from meshrec.app.commands_viz import add_viz_parsers
+from meshrec.app.parallel import add_workers_args, model_workers
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -131,6 +132,7 @@ def _parser() -> argparse.ArgumentParser:
         default=defaults.SEARCH_METHOD,
         help="local search: least squares on charts (lm) or the paper's steepest descent",
     )
+    add_workers_args(r)
 
     i = sub.add_parser("index", help="build or refresh the cached model indexes")
     models_arg(i)
@@ -316,7 +318,10 @@ def _run_recognize(args) -> int:
             warnings.simplefilter("always")
             touches, geometries = inputs.touches_and_geometries(args, names, folder, units)
             library = inputs.library(args, folder)
-            rec = recognize(touches, library, method=args.method, geometry=geometries)
+            with model_workers(args, library) as workers:
+                rec = recognize(
+                    touches, library, method=args.method, geometry=geometries, workers=workers
+                )
     finally:
         shown = {}
         for w in caught:  # each text once, as the default filter would
@@ -340,16 +345,18 @@ def _run_batch(args, names, folder, units) -> int:
             raise ValueError(f"--{option} gives one touch's hint: not with --batch")
     touch_units = inputs.touch_units(args.units, units)
     library = inputs.library(args, folder)
-    failed = run_batch(
-        names,
-        library,
-        sys.stdout,
-        lambda rec: recognition_to_json(rec, args.top),
-        units=touch_units,
-        models_units=units,
-        method=args.method,
-        probe_radius=args.probe_radius,
-    )
+    with model_workers(args, library) as workers:
+        failed = run_batch(
+            names,
+            library,
+            sys.stdout,
+            lambda rec: recognition_to_json(rec, args.top),
+            units=touch_units,
+            models_units=units,
+            method=args.method,
+            probe_radius=args.probe_radius,
+            workers=workers,
+        )
     if failed:
         raise ValueError(
             f"{failed} of {len(names)} touch files failed (their JSON lines have an "

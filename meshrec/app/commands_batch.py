@@ -20,7 +20,9 @@ from meshrec.registration.register import touch_geometry
 __all__ = ["run_batch"]
 
 
-def _one(name, library, units, models_units, method, to_json, probe_radius=None) -> dict:
+def _one(
+    name, library, units, models_units, method, to_json, probe_radius=None, workers=None
+) -> dict:
     """The JSON object of one touch file: the recognition, or an ``error``."""
     shown = STDIN_NAME if str(name) == STDIN else str(name)
     with warnings.catch_warnings(record=True) as caught:
@@ -34,7 +36,7 @@ def _one(name, library, units, models_units, method, to_json, probe_radius=None)
                 geometry = touch_geometry(touch)
             except ValueError as exc:
                 raise ValueError(f"touch file {shown}: {exc}") from exc
-            rec = recognize(touch, library, method=method, geometry=geometry)
+            rec = recognize(touch, library, method=method, geometry=geometry, workers=workers)
             doc = {"file": shown, **to_json(rec)}
         except ValueError as exc:
             doc = {"file": shown, "error": error_message(exc)}
@@ -52,6 +54,7 @@ def run_batch(
     models_units: str | None = None,
     method: str = "lm",
     probe_radius: float | None = None,
+    workers=None,
 ) -> int:
     """Recognise every touch file against ``library``; one JSON line each on ``out``.
 
@@ -75,6 +78,8 @@ def run_batch(
     probe_radius : float, optional
         The probe's ball-tip radius, in the touches' units (``--probe-radius``): it
         replaces the touch files' own.
+    workers : ModelWorkers or None
+        Where the per-model work runs (see :func:`meshrec.recognition.recognize.recognize`).
 
     Returns
     -------
@@ -83,7 +88,9 @@ def run_batch(
     """
     failed = 0
     for name in names:
-        doc = _one(name, library, units, models_units, method, to_json, probe_radius)
+        doc = _one(
+            name, library, units, models_units, method, to_json, probe_radius, workers
+        )
         failed += "error" in doc
         out.write(json.dumps(doc) + "\n")
         out.flush()

@@ -29,6 +29,7 @@ import threading
 import warnings
 
 from meshrec import defaults
+from meshrec.app.parallel import add_workers_args, model_workers
 
 __all__ = ["add_serve_parser", "create_app", "run_serve"]
 
@@ -61,6 +62,7 @@ def add_serve_parser(sub, models_arg) -> None:
         metavar="R",
         help="the probe's ball-tip radius (touch units) for touches that give none",
     )
+    add_workers_args(s)
 
 
 class BadRequest(ValueError):
@@ -182,6 +184,7 @@ class Service:
         models_units: str | None,
         method: str = defaults.SEARCH_METHOD,
         probe_radius: float | None = None,
+        workers=None,
     ):
         from meshrec.contact.probe import check_probe_radius
 
@@ -189,6 +192,7 @@ class Service:
         self.models_units = models_units
         self.method = method
         # the ball-tip radius of touches that give none (``--probe-radius``)
+        self.workers = workers  # a ModelWorkers held for the service's life, or None
         self.probe_radius = (
             None if probe_radius is None else check_probe_radius(probe_radius, "--probe-radius")
         )
@@ -234,7 +238,13 @@ class Service:
                     except ValueError as exc:
                         raise ValueError(f"{name}: {exc}") from exc
                     touches.append(touch)
-                rec = recognize(touches, self.library, method=self.method, geometry=geometries)
+                rec = recognize(
+                    touches,
+                    self.library,
+                    method=self.method,
+                    geometry=geometries,
+                    workers=self.workers,
+                )
                 if advice:
                     found = next_touch(
                         rec, self.library, approach=job["approach"], rng=job["seed"]
@@ -388,8 +398,9 @@ def run_serve(args, err=None) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        ``models``, ``model_units``, ``cache_dir``, ``host``, ``port`` and optionally
-        ``probe_radius`` (the ball-tip radius of touches that give none).
+        ``models``, ``model_units``, ``cache_dir``, ``host``, ``port``, ``workers``,
+        ``scheduler`` and optionally ``probe_radius`` (the ball-tip radius of touches that
+        give none).
     err : text stream, optional
         Where the one start-up line goes (default: ``sys.stderr``).
 
@@ -427,10 +438,15 @@ def run_serve(args, err=None) -> int:
     folder = inputs.model_folder(args.models)
     units = inputs.model_units(folder, args.model_units)
     library = inputs.library(args, folder)  # indexed (or read from the cache) once, here
-    sock = _bind(args.host, args.port)
+    workers = model_workers(args, library)  # held for the service's life
+    try:
+        sock = _bind(args.host, args.port)
+    except BaseException:
+        workers.close()
+        raise
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
-    app = create_app(Service(library, units, probe_radius=probe_radius))
+    app = create_app(Service(library, units, probe_radius=probe_radius, workers=workers))
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
     server = uvicorn.Server(config)
     err.write(
@@ -442,4 +458,5 @@ def run_serve(args, err=None) -> int:
         server.run(sockets=[sock])
     finally:
         sock.close()
+        workers.close()
     return 0

@@ -39,8 +39,9 @@ from meshrec.recognition.scoring import (
 )
 from meshrec.recognition.symmetry import without_symmetries
 from meshrec.recognition.units import check_units
+from meshrec.recognition.workers import ModelWorkers
 from meshrec.registration.objective import residuals
-from meshrec.registration.register import Registration, register, touch_geometry
+from meshrec.registration.register import Registration, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
 from meshrec.registration.transform import apply_transform
 
@@ -151,6 +152,8 @@ def recognize(
     progress: Callable[[int, int, str], None] | None = None,
     geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
     probe_radius: float | None = None,
+    workers=None,
+    scheduler: str | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -178,6 +181,13 @@ def recognize(
         touches' own ``probe_radius`` (from the touch JSON), else 0 (a point probe).
         Without a radius, data that fit a model's offset surface clearly better than
         the surface itself raise a :class:`~meshrec.contact.probe.ProbeOffsetWarning`.
+    workers : int or ModelWorkers or None
+        Where the per-model registrations run (:mod:`meshrec.recognition.workers`): None,
+        in this process; an int, that many local processes (for this call); a
+        :class:`~meshrec.recognition.workers.ModelWorkers` of this library, its workers.
+        The result is the same as a serial run's.
+    scheduler : str or None
+        The address of a Dask ``distributed`` scheduler to run them on (for this call).
 
     Returns
     -------
@@ -209,7 +219,8 @@ def recognize(
         the touches give different radii (or one other than ``probe_radius``), or a
         touch with a ``normal`` is curved more tightly than the tip where it is convex
         (``probe_radius`` at least its smallest radius of curvature: no ball of that
-        radius traces such data).
+        radius traces such data); or as :class:`~meshrec.recognition.workers.ModelWorkers`
+        for ``workers`` and ``scheduler``.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -228,6 +239,7 @@ def recognize(
     radius = touch_probe_radius(touches, probe_radius)
     models = [probe_model(m, radius) for m in models]
     caught: list = []
+    run, own = _runner(models, workers, scheduler)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -238,16 +250,18 @@ def recognize(
                 )
                 check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0])
-                rec = _with_verdict(rec, {}, models, method)
+                rec = _rank(touches[0], models, method, progress, geometries[0], run)
+                rec = _with_verdict(rec, {}, models, method, run)
             else:
-                rec, fits = _rank_joint(touches, models, method, progress, geometries)
-                rec = _with_verdict(rec, fits, models, method)
+                rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
+                rec = _with_verdict(rec, fits, models, method, run)
             rec = _with_pose_freedom(rec, models)
             _warn_coarse(rec, models)
             if radius == 0.0 and len(touches) == 1:
                 warn_probe_offset(rec, models)
     finally:
+        if own:
+            run.close()
         # Pass every warning on as before (the caller's filters decide what is shown),
         # also when the recognition fails; the result keeps their text.
         raised = list(caught)
@@ -342,6 +356,19 @@ def _freedom_phrase(freedom: PoseFreedom) -> str:
     return " and ".join(parts)
 
 
+def _runner(models: list, workers, scheduler) -> tuple[ModelWorkers, bool]:
+    """The workers to register the models with, and whether they are made (and closed) here."""
+    if isinstance(workers, ModelWorkers):
+        if scheduler is not None:
+            raise ValueError(
+                f"scheduler must be None when workers is a ModelWorkers, got {scheduler!r}"
+            )
+        return workers, False
+    if workers is None and scheduler is None:
+        workers = 1
+    return ModelWorkers(models, workers=workers, scheduler=scheduler), True
+
+
 def _warn_coarse(rec: Recognition, models: list) -> None:
     """A ResolutionWarning per model too coarse for reliable answers among the plausible
     ones and the best (see :mod:`meshrec.model.resolution`)."""
@@ -390,7 +417,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry) -> Recognition:
+def _rank(touch, library, method, progress, geometry, run) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -401,11 +428,7 @@ def _rank(touch, library, method, progress, geometry) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = []
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        results.append(register(touch, model, geometry=geometry, method=method))
+    results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,
@@ -427,7 +450,7 @@ def _ranked(rec: Recognition, results) -> Recognition:
     return dataclasses.replace(rec, ranking=tuple(results))
 
 
-def _rank_joint(touches, models, method, progress, geometries):
+def _rank_joint(touches, models, method, progress, geometries, run):
     """Several touches: every model fitted at one pose to all, the needed touches alone.
 
     Per model (independently of the others) the first touch is registered alone; its
@@ -457,12 +480,13 @@ def _rank_joint(touches, models, method, progress, geometries):
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    firsts = {}
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        first = register(touches[0], model, geometry=geometries[0], method=method, trace=True)
-        firsts[model.name] = first_touch_fit(touches, model, first)
+    regs = run.register_each(
+        touches[0], models, geometries[0], method, trace=True, progress=progress
+    )
+    firsts = {
+        model.name: first_touch_fit(touches, model, first)
+        for model, first in zip(models, regs, strict=True)
+    }
     # The joint refinement, most promising model first (by the first touch's fit, then the
     # name: an order of the data, not of the library). A model whose first touch alone
     # already fits far worse than the best joint fit so far keeps its first touch's poses
@@ -598,13 +622,23 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
     )
 
 
-def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recognition:
+def _widened(rec: Recognition, fits: dict, models: dict, method: str, run) -> Recognition:
     """Register every model again with the (K, H) window widened; keep each one's better fit.
 
     With several touches, each is registered alone with the wider window; ``fits`` (the
     joint fits, by model) is updated in place where the wider pass fits better.
     """
     merged = []
+    wides = {}
+    if len(rec.touches) == 1:
+        regs = run.register_each(
+            rec.touch,
+            [models[reg.model] for reg in rec.ranking],
+            rec.geometry,
+            method,
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        )
+        wides = {reg.model: wide for reg, wide in zip(rec.ranking, regs, strict=True)}
     for reg in rec.ranking:
         if len(rec.touches) > 1:
             fit = register_touches(
@@ -619,13 +653,7 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recogni
             wide = fit.registration
         else:
             fit = None
-            wide = register(
-                rec.touch,
-                models[reg.model],
-                geometry=rec.geometry,
-                method=method,
-                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-            )
+            wide = wides[reg.model]
         if reg.rejected or (not wide.rejected and wide.error < reg.error):
             merged.append(wide)
             if fit is not None:
@@ -635,7 +663,9 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str) -> Recogni
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(rec: Recognition, fits: dict, models: list, method: str) -> Recognition:
+def _with_verdict(
+    rec: Recognition, fits: dict, models: list, method: str, run=None
+) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
@@ -659,7 +689,9 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str) -> Re
         # patches of different curvature may mismatch every vertex's (K, H) of the right
         # model, so every model is registered again with the window widened.
         t1 = time.perf_counter()
-        rec = _widened(rec, fits, by_name, method)
+        if run is None:
+            run = ModelWorkers(models, workers=1)
+        rec = _widened(rec, fits, by_name, method, run)
         scores, noise = _score(rec)
         rec = _ordered(rec, scores)
         t_wide = time.perf_counter() - t1
