@@ -281,3 +281,20 @@ def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
     for s, r in zip(serial, remote, strict=True):
         _same(s, r)
     _same(serial[0], once)
+
+
+@pytest.mark.slow
+def test_local_processes_see_the_models_through_the_probe_tip(library, parallel_small):
+    # the workers load the models plain: the tip radius must reach them
+    lib, cache = library
+    tip = 0.05
+    sim = meshrec.simulate_touch(lib["b"], rng=6, probe_radius=tip)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = meshrec.recognize(sim.touch, lib, probe_radius=tip)
+        with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
+            parallel = meshrec.recognize(sim.touch, lib, probe_radius=tip, workers=workers)
+    _same(serial, parallel)
+    assert parallel.best.model == "b"
+    # at the tip's offset: the data fit to about the noise, not the tip radius
+    assert parallel.best.rms < 0.2 * tip
