@@ -16,6 +16,7 @@ from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -131,6 +132,7 @@ def recognize(
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
     geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
+    cascade: bool | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -150,6 +152,11 @@ def recognize(
     geometry : LocalGeometry or sequence of LocalGeometry, optional
         The local geometry at each touch's contact, if already estimated (by
         :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
+    cascade : bool, optional
+        With one touch, run the local searches only on the models whose best conceivable
+        fit after the first stages is within reach of the leaders'
+        (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
+        refined. False: the full search on every model. Default ``defaults.CASCADE``.
 
     Returns
     -------
@@ -178,6 +185,8 @@ def recognize(
         :func:`meshrec.recognition.units.check_units`) or to another touch's
         (:func:`meshrec.recognition.joint.check_touch_sizes`), or the curves do not allow
         an estimate of the local geometry.
+    TypeError
+        If ``cascade`` is not a bool or None.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -185,6 +194,10 @@ def recognize(
     check_choice(method, SEARCH_METHODS, "method")
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+    if cascade is None:
+        cascade = defaults.CASCADE
+    if not isinstance(cascade, (bool, np.bool_)):
+        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
     if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
         raise TypeError(
             f"library must be a ModelLibrary or an iterable of ModelIndex, got "
@@ -198,7 +211,7 @@ def recognize(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0])
+                rec = _rank(touches[0], models, method, progress, geometries[0], bool(cascade))
                 rec = _with_verdict(rec, {}, models, method)
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
@@ -262,7 +275,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry) -> Recognition:
+def _rank(touch, library, method, progress, geometry, cascade=False) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -273,11 +286,15 @@ def _rank(touch, library, method, progress, geometry) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = []
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        results.append(register(touch, model, geometry=geometry, method=method))
+    if cascade:
+        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+        results = cascade_register(touch, models, geometry, noise, method, progress)
+    else:
+        results = []
+        for i, model in enumerate(models):
+            if progress is not None:
+                progress(i, len(models), model.name)
+            results.append(register(touch, model, geometry=geometry, method=method))
     return _ranked(
         Recognition(
             touch=touch,
