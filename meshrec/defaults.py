@@ -374,6 +374,10 @@ CASCADE_SCREEN_GAIN = 2.0
 #: the screening's error is a mean on the phi subsample, the rms is at least the mean).
 #: With these two gains the rule pruned 59 of the 135 pairs, none of the 38 close ones.
 CASCADE_LEADER_GAIN = 2.0
+#: Rigid-refinement steps on all the points for a pruned model's reported pose (as the
+#: screening's SCREEN_ITERATIONS): its error is an upper bound either way, and the full
+#: refinement of a far-off fit was a third of a pruned model's time.
+CASCADE_PRUNED_ITERATIONS = 3
 #: Local searches of a further touch registered alone (the first has LOCAL_SEARCHES): its
 #: poses only seed the joint refinement, where the other touches pin the pose down. Half,
 #: for time (three touches cost about twice one: reports/touches.md); not tuned further.

@@ -7,9 +7,10 @@ place every candidate near its basin; the local searches and refinements after t
 the best, only lower an error that loses anyway. The cascade runs the first stages on every
 model, keeps the models whose best conceivable fit is within reach of the leaders'
 (:func:`cascade_survivors`), runs the full search on those, and gives every other model the
-pose of its best screened candidate refined on all the points (:func:`pruned_registration`:
-the full search starts from that candidate too and keeps its best, so the pruned error is
-the full search's or larger, up to the optimisers' tolerance, and its probability only falls).
+pose of its best screened candidate, a few refinement steps on all the points
+(:func:`pruned_registration`: the full search starts from that candidate too and keeps its
+best, so the pruned error is the full search's or larger, up to the optimisers' tolerance,
+and its probability only falls).
 
 The rule is the scores' own (:mod:`meshrec.recognition.scoring`): a model's
 log-likelihood is ``-n_eff rms^2 / (2 noise^2)``. Its best conceivable rms is its screened
@@ -116,7 +117,8 @@ def cascade_survivors(
 
 def pruned_registration(touch: TouchData, model, coarse: CoarseRegistration) -> Registration:
     """The Registration of a model the cascade pruned: its best screened candidate's pose
-    refined on all the points (the final rigid refinement of :func:`register_full`).
+    refined on all the points by ``defaults.CASCADE_PRUNED_ITERATIONS`` steps of the
+    final rigid refinement of :func:`register_full`.
 
     Parameters
     ----------
@@ -151,7 +153,9 @@ def pruned_registration(touch: TouchData, model, coarse: CoarseRegistration) -> 
     i = int(coarse.screening.candidates[0])
     side = cands.sides[cands.side[i]]
     T0 = superposition(side.point, side.frame, cands.origins[i], float(coarse.screening.phis[0]))
-    ref = refine_rigid(model, cands.points, T0)
+    # A few steps only (the screening's count): the pose of a model far worse than the
+    # leaders needs no polish, and a full refinement there took up to 30 iterations.
+    ref = refine_rigid(model, cands.points, T0, max_iter=defaults.CASCADE_PRUNED_ITERATIONS)
     pose = refined_pose(model, ref, cands.geometry.point)
     t_refine = time.perf_counter() - t0
     times = dict(coarse.times)
