@@ -1,5 +1,5 @@
-"""Rigid refinements in lockstep: each the same as refine_rigid from its start (the
-brute-force twin), to the last bit."""
+"""Rigid refinements in lockstep and large distance queries: each the same as its
+one-at-a-time twin (refine_rigid from each start, small queries), to the last bit."""
 
 from pathlib import Path
 
@@ -60,3 +60,19 @@ def test_no_start_gives_nothing(model):
 def test_bad_shapes_are_refused(model, points, T, match):
     with pytest.raises(ValueError, match=match):
         refine_rigid_batch(model, points, T)
+
+
+def test_a_large_query_answers_each_point_as_small_ones_do(model):
+    # Large queries are sorted along a Morton curve inside closest_points: every point's
+    # answer must be the one it gets in small (unsorted) queries, to the last bit.
+    rng = np.random.default_rng(3)
+    V = model.mesh.vertices
+    P = V[rng.integers(0, len(V), 3000)] + rng.normal(0, 0.05, (3000, 3))
+    d, c, f = model.surface.closest_points(P)
+    parts = [model.surface.closest_points(P[i : i + 100]) for i in range(0, len(P), 100)]
+    np.testing.assert_array_equal(d, np.concatenate([p[0] for p in parts]))
+    np.testing.assert_array_equal(c, np.concatenate([p[1] for p in parts]))
+    np.testing.assert_array_equal(f, np.concatenate([p[2] for p in parts]))
+    # Coincident points (a degenerate bounding box) are answered too.
+    same = np.repeat(P[:1], 600, axis=0)
+    assert np.all(model.surface.closest_points(same)[0] == d[0])
