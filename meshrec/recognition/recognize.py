@@ -17,6 +17,7 @@ from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.freedom import PoseFreedom, pose_freedom
 from meshrec.recognition.joint import (
     check_touch_sizes,
@@ -154,6 +155,7 @@ def recognize(
     probe_radius: float | None = None,
     workers=None,
     scheduler: str | None = None,
+    cascade: bool | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -188,6 +190,14 @@ def recognize(
         The result is the same as a serial run's.
     scheduler : str or None
         The address of a Dask ``distributed`` scheduler to run them on (for this call).
+    cascade : bool, optional
+        With one touch, run the local searches only on the models whose best conceivable
+        fit after the first stages is within reach of the leaders'
+        (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
+        refined. False: the full search on every model. Default ``defaults.CASCADE``.
+        The cascade runs in this process: with ``workers`` or ``scheduler`` in use the
+        full search runs on every model (the result of a serial run with
+        ``cascade=False``).
 
     Returns
     -------
@@ -221,6 +231,8 @@ def recognize(
         (``probe_radius`` at least its smallest radius of curvature: no ball of that
         radius traces such data); or as :class:`~meshrec.recognition.workers.ModelWorkers`
         for ``workers`` and ``scheduler``.
+    TypeError
+        If ``cascade`` is not a bool or None.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -228,6 +240,10 @@ def recognize(
     check_choice(method, SEARCH_METHODS, "method")
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+    if cascade is None:
+        cascade = defaults.CASCADE
+    if not isinstance(cascade, (bool, np.bool_)):
+        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
     if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
         raise TypeError(
             f"library must be a ModelLibrary or an iterable of ModelIndex, got "
@@ -250,7 +266,9 @@ def recognize(
                 )
                 check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0], run)
+                rec = _rank(
+                    touches[0], models, method, progress, geometries[0], run, bool(cascade)
+                )
                 rec = _with_verdict(rec, {}, models, method, run)
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
@@ -417,7 +435,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry, run) -> Recognition:
+def _rank(touch, library, method, progress, geometry, run, cascade=False) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -428,7 +446,11 @@ def _rank(touch, library, method, progress, geometry, run) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = run.register_each(touch, models, geometry, method, progress=progress)
+    if cascade and run.mode == "serial":
+        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+        results = cascade_register(touch, models, geometry, noise, method, progress)
+    else:
+        results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,
