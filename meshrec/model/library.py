@@ -196,7 +196,7 @@ class ModelLibrary:
                     models[path.stem] = model
                     if not model.curvature.valid.any():
                         unusable.append(
-                            f"model {path.stem!r} ({str(path)!r}): no vertex has a usable "
+                            f"model {path.stem!r} ({str(path)!r}): no surface site has a usable "
                             f"curvature estimate ({len(model.mesh.faces)} faces: too coarse or "
                             "degenerate), so no touch will ever match it"
                         )
