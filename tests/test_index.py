@@ -620,9 +620,7 @@ def test_parts_check_their_inputs(sphere_index):
     with pytest.raises(ValueError, match="range_radius must be finite and >= 0, got -1.0"):
         CurvatureTable.from_mesh(mesh, sphere_index.surface, **{**_LENGTHS, "range_radius": -1.0})
     with pytest.raises(ValueError, match=r"crease_angle_deg must be in \(0, 180\] degrees"):
-        CurvatureTable.from_mesh(
-            mesh, sphere_index.surface, **_LENGTHS, crease_angle_deg=200.0
-        )
+        CurvatureTable.from_mesh(mesh, sphere_index.surface, **_LENGTHS, crease_angle_deg=200.0)
     with pytest.raises(TypeError, match="mesh must be a MeshData, got str"):
         AabbSurface.from_mesh("ball", 60.0)
     with pytest.raises(ValueError, match=r"crease_angle_deg must be in \(0, 180\]"):
@@ -630,7 +628,9 @@ def test_parts_check_their_inputs(sphere_index):
     small = MeshData.from_arrays(*(np.asarray(a) for a in (mesh.vertices[:3], [[0, 1, 2]])))
     small_table = CurvatureTable.from_mesh(small, AabbSurface.from_mesh(small, 25.0), **_LENGTHS)
     m = len(mesh.faces)
-    with pytest.raises(ValueError, match=rf"curvature must have one patch label per mesh face \({m}\)"):
+    with pytest.raises(
+        ValueError, match=rf"curvature must have one patch label per mesh face \({m}\)"
+    ):
         dataclasses.replace(sphere_index, curvature=small_table)
     with pytest.raises(TypeError, match="surface must be a SurfaceQuery, got str"):
         dataclasses.replace(sphere_index, surface="fast")

@@ -119,7 +119,11 @@ def sample_sites(
     if not 0 < crease_angle_deg <= 180:
         raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {crease_angle_deg!r}")
     rng = np.random.default_rng(rng)
-    V, F = mesh.vertices, mesh.faces
+    # Everything in units of the model's size (trimesh's and libigl's tolerances are
+    # absolute), back to model units at the end.
+    unit = mesh.scale
+    V, F = mesh.vertices / unit, mesh.faces
+    spacing, radius, range_radius = spacing / unit, radius / unit, range_radius / unit
     tm = trimesh.Trimesh(V, F, process=False, validate=False)
     face_patch, sharp = _patches(tm, crease_angle_deg)
 
@@ -137,7 +141,8 @@ def sample_sites(
     corner = igl.per_corner_normals(V, F, float(crease_angle_deg)).reshape(-1, 3, 3)
     w = _barycentric(V, F, pts, face)
     normals = _unit(np.einsum("ni,nij->nj", w, corner[face]))
-    pts = pts + surface.smooth_offsets(pts, face)[:, None] * mesh.face_normals[face]
+    lift = surface.smooth_offsets(pts * unit, face) / unit
+    pts = pts + lift[:, None] * mesh.face_normals[face]
     k1, k2, dir1, dir2, valid = _shape_operator(pts, normals, face_patch[face], radius)
     patch = face_patch[face]
 
@@ -161,12 +166,14 @@ def sample_sites(
     H_range[n_smooth:] = np.column_stack(
         [np.where(sign > 0, 0.0, -np.inf), np.where(sign > 0, np.inf, 0.0)]
     )
+    K_range[:n_smooth] /= unit**2
+    H_range[:n_smooth] /= unit
     return SiteSample(
-        points=points,
+        points=points * unit,
         normals=np.vstack([normals, cn]),
         normals2=np.vstack([normals, cn2]),
-        k1=np.concatenate([k1, np.maximum(ck1, 0.0)]),
-        k2=np.concatenate([k2, np.minimum(ck1, 0.0)]),
+        k1=np.concatenate([k1, np.maximum(ck1, 0.0)]) / unit,
+        k2=np.concatenate([k2, np.minimum(ck1, 0.0)]) / unit,
         dir1=np.vstack([dir1, cd1]),
         dir2=np.vstack([dir2, cd2]),
         valid=valid_all,
