@@ -374,7 +374,7 @@ def test_flat_and_sharp_models_do_not_poison_the_table(tmp_path):
         [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
     )
     _export(tetrahedron, folder / "tet.stl")
-    island = trimesh.Trimesh([[10, 0, 0], [10.01, 0, 0], [10, 0.01, 0]], [[0, 1, 2]])
+    island = trimesh.Trimesh([[10, 0, 0], [10.05, 0, 0], [10, 0.05, 0]], [[0, 1, 2]])
     _export(trimesh.util.concatenate([_sphere(), island]), folder / "ball.ply")
     lib = ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
     tet = lib["tet"].curvature
