@@ -287,8 +287,8 @@ def test_lookup_matches_brute_force(ellipsoid_index):
 
 def test_ranges_hold_the_neighbourhood(ellipsoid_index):
     t = ellipsoid_index.curvature
-    assert np.all(t.K_range[:, 0] <= t.K) and np.all(t.K <= t.K_range[:, 1])
-    assert np.all(t.H_range[:, 0] <= t.H) and np.all(t.H <= t.H_range[:, 1])
+    assert np.all(t.K_range[:, 0] <= t.K) and np.all(t.K_range[:, 1] >= t.K)
+    assert np.all(t.H_range[:, 0] <= t.H) and np.all(t.H_range[:, 1] >= t.H)
     tree = cKDTree(t.points)
     for v in (0, 77, 1234):
         near = tree.query_ball_point(t.points[v], t.range_radius * 0.999)

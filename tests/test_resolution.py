@@ -17,13 +17,13 @@ from meshrec.app.cli import main
 from meshrec.model.curvature import CurvatureTable
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MeshData
-from meshrec.model.surface import AabbSurface
 from meshrec.model.resolution import (
     Resolution,
     ResolutionWarning,
     coarse_message,
     mesh_resolution,
 )
+from meshrec.model.surface import AabbSurface
 from meshrec.recognition.recognize import recognize
 
 

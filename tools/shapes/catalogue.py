@@ -137,4 +137,3 @@ def all_models():
         ),
     ]
     return models
-

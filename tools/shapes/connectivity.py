@@ -141,4 +141,3 @@ def faces_valid(xyz, faces):
     (m,) bool ndarray
     """
     return signed_area(xyz[:, :2], faces) > 0.0
-

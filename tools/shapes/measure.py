@@ -63,4 +63,3 @@ def measure_mesh(mesh, distance):
         "dev_max": float(dev.max()),
         "dev_rms": float(np.sqrt(np.mean(dev**2))),
     }
-
