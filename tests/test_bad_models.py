@@ -310,7 +310,8 @@ def test_open_boundary(tmp_path):
     # away from the rim, where the fit is one-sided
     _radius_1_curvature_ok(idx, lambda p: p[:, 2] > 0.3)
     t = idx.curvature
-    assert np.isfinite(t.K[t.table_sites]).all() and np.isfinite(t.H[t.table_sites]).all()
+    assert np.isfinite(t.K[t.table_sites]).all()
+    assert np.isfinite(t.H[t.table_sites]).all()
 
 
 def test_non_manifold_edge(tmp_path):
@@ -380,10 +381,12 @@ def test_flat_and_sharp_models_do_not_poison_the_table(tmp_path):
     tet = lib["tet"].curvature
     assert tet.valid.mean() > 0.99  # a few sites in the corners have too few neighbours
     flat = tet.valid & ~tet.crease
-    assert np.abs(tet.H[flat]).max() < 1e-9 and tet.crease.sum() > 6
+    assert np.abs(tet.H[flat]).max() < 1e-9
+    assert tet.crease.sum() > 6
     ball = lib["ball"].curvature
     far = np.linalg.norm(ball.points, axis=1) > 5
-    assert far.any() and not ball.valid[far].any()
+    assert far.any()
+    assert not ball.valid[far].any()
     assert np.isfinite(ball.K[ball.table_sites]).all()
     rec = recognize(simulate_touch(_sphere(), rng=2).touch, lib)
     assert rec.best.model == "ball"

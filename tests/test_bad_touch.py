@@ -165,8 +165,7 @@ CASES = {
         lambda f, g, s: _bytes(f / "binary.csv", bytes(range(256)) * 4), r"binary content"
     ),
     "not_utf8": Case(
-        lambda f, g, s: _bytes(f / "latin.csv", b"curve,x,y,z\n0,\xe9,1,2\n"),
-        r"not UTF-8 text",
+        lambda f, g, s: _bytes(f / "latin.csv", b"curve,x,y,z\n0,\xe9,1,2\n"), r"not UTF-8 text",
         cli=False,
     ),
     "directory": Case(lambda f, g, s: _mkdir(f / "folder.csv"), r"folder\.csv: is a directory"),

@@ -199,7 +199,8 @@ def test_cylinder_side_curvature(tmp_path):
     assert rim.sum() > 50
     assert np.allclose(np.hypot(t.points[rim, 0], t.points[rim, 1]), r, rtol=2e-3)
     assert np.allclose(np.abs(t.points[rim, 2]), 2.0)
-    assert (t.H_range[rim, 0] == 0).all() and np.isinf(t.H_range[rim, 1]).all()
+    assert (t.H_range[rim, 0] == 0).all()
+    assert np.isinf(t.H_range[rim, 1]).all()
 
 
 def test_ellipsoid_curvature_against_closed_form(ellipsoid_index):
@@ -287,13 +288,17 @@ def test_lookup_matches_brute_force(ellipsoid_index):
 
 def test_ranges_hold_the_neighbourhood(ellipsoid_index):
     t = ellipsoid_index.curvature
-    assert np.all(t.K_range[:, 0] <= t.K) and np.all(t.K_range[:, 1] >= t.K)
-    assert np.all(t.H_range[:, 0] <= t.H) and np.all(t.H_range[:, 1] >= t.H)
+    assert np.all(t.K_range[:, 0] <= t.K)
+    assert np.all(t.K_range[:, 1] >= t.K)
+    assert np.all(t.H_range[:, 0] <= t.H)
+    assert np.all(t.H_range[:, 1] >= t.H)
     tree = cKDTree(t.points)
     for v in (0, 77, 1234):
         near = tree.query_ball_point(t.points[v], t.range_radius * 0.999)
-        assert t.K_range[v, 0] <= t.K[near].min() and t.K[near].max() <= t.K_range[v, 1]
-        assert t.H_range[v, 0] <= t.H[near].min() and t.H[near].max() <= t.H_range[v, 1]
+        assert t.K_range[v, 0] <= t.K[near].min()
+        assert t.K[near].max() <= t.K_range[v, 1]
+        assert t.H_range[v, 0] <= t.H[near].min()
+        assert t.H[near].max() <= t.H_range[v, 1]
 
 
 def test_lookup_on_a_flat_model(tmp_path):
@@ -611,13 +616,13 @@ def test_parts_check_their_inputs(sphere_index):
         CurvatureTable(**{**fields, "scale": 0.0})
     with pytest.raises(TypeError, match="mesh must be a MeshData, got Trimesh"):
         CurvatureTable.from_mesh(trimesh.creation.box(), sphere_index.surface, **_LENGTHS)
-    with pytest.raises(ValueError, match="spacing must be finite and > 0, got 0.0"):
+    with pytest.raises(ValueError, match=r"spacing must be finite and > 0, got 0\.0"):
         CurvatureTable.from_mesh(mesh, sphere_index.surface, **{**_LENGTHS, "spacing": 0.0})
     with pytest.raises(ValueError, match="radius must be finite and > 0, got nan"):
         CurvatureTable.from_mesh(
             mesh, sphere_index.surface, **{**_LENGTHS, "curvature_radius": np.nan}
         )
-    with pytest.raises(ValueError, match="range_radius must be finite and >= 0, got -1.0"):
+    with pytest.raises(ValueError, match=r"range_radius must be finite and >= 0, got -1\.0"):
         CurvatureTable.from_mesh(mesh, sphere_index.surface, **{**_LENGTHS, "range_radius": -1.0})
     with pytest.raises(ValueError, match=r"crease_angle_deg must be in \(0, 180\] degrees"):
         CurvatureTable.from_mesh(mesh, sphere_index.surface, **_LENGTHS, crease_angle_deg=200.0)

@@ -35,9 +35,8 @@ def _touches(model, seed: int, count: int = 3):
     T_world_model[:3, :3] = Rotation.random(random_state=rng).as_matrix()
     T_world_model[:3, 3] = rng.uniform(-1, 1, 3)
     touches = [
-        meshrec.simulate_touch(
-            model, length=0.2, noise=0.004, rng=rng, transform=False
-        ).touch.transformed(T_world_model)
+        meshrec.simulate_touch(model, length=0.2, noise=0.004, rng=rng, transform=False)
+        .touch.transformed(T_world_model)
         for _ in range(count)
     ]
     return touches, np.linalg.inv(T_world_model)

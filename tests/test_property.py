@@ -138,10 +138,8 @@ def test_random_csv_text(world, header, rows, newline):
 
 _JSON = st.recursive(
     st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=3),
-    lambda inner: (
-        st.lists(inner, max_size=5)
-        | st.dictionaries(st.sampled_from(["curves", "contact", "normal", "x"]), inner, max_size=3)
-    ),
+    lambda inner: st.lists(inner, max_size=5)
+    | st.dictionaries(st.sampled_from(["curves", "contact", "normal", "x"]), inner, max_size=3),
     max_leaves=30,
 )
 
@@ -297,11 +295,9 @@ _ARRAYS = hnp.arrays(
 #: Anything an argument could be: scalars, nested lists, arrays of any dtype, mappings.
 _ANYTHING = st.recursive(
     st.one_of(_SCALARS, _ARRAYS),
-    lambda inner: (
-        st.lists(inner, max_size=6)
-        | st.tuples(inner, inner, inner)
-        | st.dictionaries(st.text(max_size=2), inner, max_size=2)
-    ),
+    lambda inner: st.lists(inner, max_size=6)
+    | st.tuples(inner, inner, inner)
+    | st.dictionaries(st.text(max_size=2), inner, max_size=2),
     max_leaves=40,
 )
 

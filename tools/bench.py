@@ -116,10 +116,8 @@ def _progress(label):
 
 def _table2(rows, n, out):
     out.append(f"### Table 2: localisation error ||p - p*||, {n} trials per surface\n")
-    out.append(
-        "| surface | min | max | avg | oracle avg | avg / oracle | paper min | max | avg "
-        "| target (avg <= 0.015, <= 1.5x oracle) |"
-    )
+    out.append("| surface | min | max | avg | oracle avg | avg / oracle | paper min | max | avg "
+               "| target (avg <= 0.015, <= 1.5x oracle) |")
     out.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for name in meshrec.PAPER_SURFACES:
         r = [t for t in rows if t.shape == name][:n]
@@ -128,19 +126,15 @@ def _table2(rows, n, out):
         ratio = loc.mean() / orc.mean()
         pmin, pmax, pavg = PAPER_TABLE2[name]
         ok = loc.mean() <= TARGET_LOC and ratio <= TARGET_ORACLE_RATIO
-        out.append(
-            f"| {name} | {loc.min():.4f} | {loc.max():.4f} | {loc.mean():.4f} "
-            f"| {orc.mean():.4f} | {ratio:.2f} | {pmin} | {pmax} | {pavg} | {_ok(ok)} |"
-        )
+        out.append(f"| {name} | {loc.min():.4f} | {loc.max():.4f} | {loc.mean():.4f} "
+                   f"| {orc.mean():.4f} | {ratio:.2f} | {pmin} | {pmax} | {pavg} | {_ok(ok)} |")
     out.append("")
 
 
 def _table3(rows, n, out):
     out.append(f"### Table 3: recognition among the four surfaces, {n} trials per surface\n")
-    out.append(
-        "| surface | table lookup | local search | failed | wrong / right error: mean "
-        "| min | paper: lookup | local search |"
-    )
+    out.append("| surface | table lookup | local search | failed | wrong / right error: mean "
+               "| min | paper: lookup | local search |")
     out.append("|---|---:|---:|---:|---:|---:|---:|---:|")
     total = 0
     for name in meshrec.PAPER_SURFACES:
@@ -152,24 +146,18 @@ def _table3(rows, n, out):
         mean = f"{np.mean(ratios):.2f}" if ratios else "-"
         low = f"{np.min(ratios):.2f}" if ratios else "-"
         pl, ps = PAPER_TABLE3[name]
-        out.append(
-            f"| {name} | {lookup} | {search} | {len(r) - lookup - search} | {mean} "
-            f"| {low} | {pl} | {ps} |"
-        )
-    out.append(
-        f"\nRecognised: {total}/{4 * n} (target {4 * n}/{4 * n}: "
-        f"{_ok(total == 4 * n)}; the paper: 40/40 on 10 trials each, wrong models' "
-        "errors 180% higher on average where a local search was needed).\n"
-    )
+        out.append(f"| {name} | {lookup} | {search} | {len(r) - lookup - search} | {mean} "
+                   f"| {low} | {pl} | {ps} |")
+    out.append(f"\nRecognised: {total}/{4 * n} (target {4 * n}/{4 * n}: "
+               f"{_ok(total == 4 * n)}; the paper: 40/40 on 10 trials each, wrong models' "
+               "errors 180% higher on average where a local search was needed).\n")
 
 
 def _table4(rows, n, out):
     out.append(f"### Table 4: experiment objects, {n} trials per object (mm)\n")
-    out.append(
-        "Mean per-point error of each object's touches on each model (mean over the "
-        "trials; '-' where the lookup rejected the model on every trial, with how "
-        "often it was rejected), the paper's single touch in brackets.\n"
-    )
+    out.append("Mean per-point error of each object's touches on each model (mean over the "
+               "trials; '-' where the lookup rejected the model on every trial, with how "
+               "often it was rejected), the paper's single touch in brackets.\n")
     out.append("| object \\ model | " + " | ".join(OBJECTS) + " | recognised |")
     out.append("|---|" + "---:|" * (len(OBJECTS) + 1))
     ok_all = n_all = 0
@@ -191,47 +179,36 @@ def _table4(rows, n, out):
         out.append(f"| {obj} | " + " | ".join(cells) + f" | {ok}/{len(r)} |")
     rate = ok_all / n_all
     mean_right = float(np.mean(right_errors))
-    out.append(
-        f"\nRecognised {ok_all}/{n_all} ({100 * rate:.1f}%; target >= 98%: "
-        f"{_ok(rate >= TARGET_OBJECT_RATE)}); right-model error mean {mean_right:.4f} mm, "
-        f"max {np.max(right_errors):.4f} mm (target <= 0.06 mm per point: "
-        f"{_ok(mean_right <= TARGET_OBJECT_ERROR)}).\n"
-    )
+    out.append(f"\nRecognised {ok_all}/{n_all} ({100 * rate:.1f}%; target >= 98%: "
+               f"{_ok(rate >= TARGET_OBJECT_RATE)}); right-model error mean {mean_right:.4f} mm, "
+               f"max {np.max(right_errors):.4f} mm (target <= 0.06 mm per point: "
+               f"{_ok(mean_right <= TARGET_OBJECT_ERROR)}).\n")
 
 
 def _speed(rows_by_lib, out):
     out.append("### Speed: one recognition against a library (warm cache)\n")
-    out.append(
-        "Wall time per touch; stages summed over the library's models, median over the touches.\n"
-    )
-    out.append(
-        "| library | touches | median (s) | worst (s) | curvature estimate | lookup | "
-        "phi | screen | local search | refinement | target median <= 1.0 s |"
-    )
+    out.append("Wall time per touch; stages summed over the library's models, median over the "
+               "touches.\n")
+    out.append("| library | touches | median (s) | worst (s) | curvature estimate | lookup | "
+               "phi | screen | local search | refinement | target median <= 1.0 s |")
     out.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for lib, rows in rows_by_lib.items():
         s = np.array([t.seconds for t in rows])
-        st = {
-            k: np.median([getattr(t.times, k) for t in rows])
-            for k in ("lookup", "phi", "screen", "search", "refine")
-        }
+        st = {k: np.median([getattr(t.times, k) for t in rows])
+              for k in ("lookup", "phi", "screen", "search", "refine")}
         geo = np.median([t.geometry_seconds for t in rows])
-        out.append(
-            f"| {lib} | {len(rows)} | {np.median(s):.3f} | {s.max():.3f} | {geo:.4f} "
-            f"| {st['lookup']:.4f} | {st['phi']:.3f} | {st['screen']:.3f} "
-            f"| {st['search']:.3f} | {st['refine']:.3f} "
-            f"| {_ok(np.median(s) <= TARGET_SECONDS)} |"
-        )
+        out.append(f"| {lib} | {len(rows)} | {np.median(s):.3f} | {s.max():.3f} | {geo:.4f} "
+                   f"| {st['lookup']:.4f} | {st['phi']:.3f} | {st['screen']:.3f} "
+                   f"| {st['search']:.3f} | {st['refine']:.3f} "
+                   f"| {_ok(np.median(s) <= TARGET_SECONDS)} |")
     out.append("")
 
 
 def _index_times(out):
     out.append("### Index build and cached load per model\n")
     out.append("Built into an empty temporary cache, then loaded from it (median of 3 loads).\n")
-    out.append(
-        "| model | faces | vertices | curvature sites | build (s) "
-        "| cached load (s) | targets (build <= 2 s, load <= 0.1 s) |"
-    )
+    out.append("| model | faces | vertices | curvature sites | build (s) "
+               "| cached load (s) | targets (build <= 2 s, load <= 0.1 s) |")
     out.append("|---|---:|---:|---:|---:|---:|---|")
     with tempfile.TemporaryDirectory() as cache:
         for lib in ("surfaces", "objects"):
@@ -247,10 +224,9 @@ def _index_times(out):
                 load = float(np.median(loads))
                 ok = build <= TARGET_BUILD and load <= TARGET_LOAD
                 faces, vertices = len(m.mesh.faces), len(m.mesh.vertices)
-                out.append(
-                    f"| {lib}/{path.name} | {faces:,} | {vertices:,} "
-                    f"| {len(m.curvature.points):,} | {build:.2f} | {load:.3f} | {_ok(ok)} |"
-                )
+                out.append(f"| {lib}/{path.name} | {faces:,} | {vertices:,} "
+                           f"| {len(m.curvature.points):,} | {build:.2f} | {load:.3f} "
+                           f"| {_ok(ok)} |")
     out.append("")
 
 
@@ -270,7 +246,8 @@ def _baseline(library, rows, n, label, out, length_fraction):
             stats["meshrec"].append((t.recognised, t.loc_error, t.seconds))
             for method in ("fpfh", "multistart"):
                 res = [
-                    baseline.baseline_register(sim.touch, prepared[name], method=method, rng=t.seed)
+                    baseline.baseline_register(sim.touch, prepared[name], method=method,
+                                               rng=t.seed)
                     for name in library.names
                 ]
                 best = min(res, key=lambda r: r.error)
@@ -286,24 +263,17 @@ def _baseline(library, rows, n, label, out, length_fraction):
             print(f"\rbaseline {label}: {done}/{total}", end="", file=sys.stderr, flush=True)
     print(file=sys.stderr)
     out.append(f"### Baseline on {label}: {n} touches per shape, the same touches\n")
-    out.append(
-        "| method | recognised | localisation avg | median | time per recognition: "
-        "median (s) | worst (s) |"
-    )
+    out.append("| method | recognised | localisation avg | median | time per recognition: "
+               "median (s) | worst (s) |")
     out.append("|---|---:|---:|---:|---:|---:|")
-    names = {
-        "meshrec": "meshrec",
-        "fpfh": "Open3D FPFH + RANSAC + ICP",
-        "multistart": f"Open3D multi-start ICP ({defaults.BASELINE_STARTS} starts)",
-    }
+    names = {"meshrec": "meshrec", "fpfh": "Open3D FPFH + RANSAC + ICP",
+             "multistart": f"Open3D multi-start ICP ({defaults.BASELINE_STARTS} starts)"}
     for key, rows_k in stats.items():
         ok = sum(r[0] for r in rows_k)
         loc = np.array([r[1] for r in rows_k])
         sec = np.array([r[2] for r in rows_k])
-        out.append(
-            f"| {names[key]} | {ok}/{len(rows_k)} | {loc.mean():.4f} | "
-            f"{np.median(loc):.4f} | {np.median(sec):.3f} | {sec.max():.3f} |"
-        )
+        out.append(f"| {names[key]} | {ok}/{len(rows_k)} | {loc.mean():.4f} | "
+                   f"{np.median(loc):.4f} | {np.median(sec):.3f} | {sec.max():.3f} |")
     out.append("")
 
 
@@ -329,32 +299,16 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=100, help="touches per shape")
     p.add_argument("--paper-size", type=int, default=10, help="also report the first N trials")
-    p.add_argument(
-        "--baseline-trials",
-        type=int,
-        default=10,
-        help="touches per shape for the Open3D baseline (0: none)",
-    )
+    p.add_argument("--baseline-trials", type=int, default=10,
+                   help="touches per shape for the Open3D baseline (0: none)")
     p.add_argument("--seed", type=int, default=0, help="first seed")
-    p.add_argument(
-        "--length-fraction",
-        type=float,
-        default=defaults.SIM_LENGTH_FRACTION,
-        help="curve length as a fraction of sqrt(surface area) of the model",
-    )
-    p.add_argument(
-        "--folder",
-        type=Path,
-        default=None,
-        help="benchmark a folder of your own models instead of the bundled ones",
-    )
+    p.add_argument("--length-fraction", type=float, default=defaults.SIM_LENGTH_FRACTION,
+                   help="curve length as a fraction of sqrt(surface area) of the model")
+    p.add_argument("--folder", type=Path, default=None,
+                   help="benchmark a folder of your own models instead of the bundled ones")
     p.add_argument("--out", type=Path, default=None, help="Markdown report (default: stdout)")
-    p.add_argument(
-        "--figure",
-        type=Path,
-        default=None,
-        help="Figure 6 style PNG of the true and found contacts on the surfaces",
-    )
+    p.add_argument("--figure", type=Path, default=None,
+                   help="Figure 6 style PNG of the true and found contacts on the surfaces")
     p.add_argument("--no-index-times", action="store_true", help="skip the index timings")
     args = p.parse_args(argv)
 
@@ -365,57 +319,38 @@ def main(argv=None) -> int:
     out.append("")
     out.append(f"Machine: {_machine()}. Versions: {_versions()}.")
     out.append("")
-    out.append(
-        f"Curves: length {args.length_fraction:g} x sqrt(surface area) of the touched "
-        "model (about 0.6 on the unit surfaces, the paper's figures; 31 to 45 mm on the "
-        "objects); paper surfaces 61 points per curve, uniform noise +-0.001; objects "
-        "41 points, +-0.1 mm, contacts on the curved sides at least "
-        f"{defaults.BENCH_RIM_MARGIN:g} mm from the rims. Seeds {args.seed} to "
-        f"{args.seed + args.trials - 1} per shape. Times are wall-clock on a shared "
-        "machine: read medians and ratios."
-    )
+    out.append(f"Curves: length {args.length_fraction:g} x sqrt(surface area) of the touched "
+               "model (about 0.6 on the unit surfaces, the paper's figures; 31 to 45 mm on the "
+               "objects); paper surfaces 61 points per curve, uniform noise +-0.001; objects "
+               "41 points, +-0.1 mm, contacts on the curved sides at least "
+               f"{defaults.BENCH_RIM_MARGIN:g} mm from the rims. Seeds {args.seed} to "
+               f"{args.seed + args.trials - 1} per shape. Times are wall-clock on a shared "
+               "machine: read medians and ratios.")
     out.append("")
     ok = True
     if args.folder is not None:
         library = meshrec.ModelLibrary.from_folder(args.folder)
-        rows = bench.run_trials(
-            library,
-            library.names,
-            args.trials,
-            args.seed,
-            length_fraction=args.length_fraction,
-            progress=_progress(str(args.folder)),
-        )
+        rows = bench.run_trials(library, library.names, args.trials, args.seed,
+                                length_fraction=args.length_fraction,
+                                progress=_progress(str(args.folder)))
         out.append(f"## Folder {args.folder}\n")
         out.append("| model | recognised | localisation avg | max | time median (s) |")
         out.append("|---|---:|---:|---:|---:|")
         for name in library.names:
             r = [t for t in rows if t.shape == name]
             loc = np.array([t.loc_error for t in r])
-            out.append(
-                f"| {name} | {sum(t.recognised for t in r)}/{len(r)} | {loc.mean():.4g} "
-                f"| {loc.max():.4g} | {np.median([t.seconds for t in r]):.3f} |"
-            )
+            out.append(f"| {name} | {sum(t.recognised for t in r)}/{len(r)} | {loc.mean():.4g} "
+                       f"| {loc.max():.4g} | {np.median([t.seconds for t in r]):.3f} |")
         _speed({str(args.folder): rows}, out)
     else:
         surfaces = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
         objects = meshrec.ModelLibrary.from_folder(MODELS / "objects")
-        s_rows = bench.run_trials(
-            surfaces,
-            meshrec.PAPER_SURFACES,
-            args.trials,
-            args.seed,
-            length_fraction=args.length_fraction,
-            progress=_progress("surfaces"),
-        )
-        o_rows = bench.run_trials(
-            objects,
-            OBJECTS,
-            args.trials,
-            args.seed,
-            length_fraction=args.length_fraction,
-            progress=_progress("objects"),
-        )
+        s_rows = bench.run_trials(surfaces, meshrec.PAPER_SURFACES, args.trials, args.seed,
+                                  length_fraction=args.length_fraction,
+                                  progress=_progress("surfaces"))
+        o_rows = bench.run_trials(objects, OBJECTS, args.trials, args.seed,
+                                  length_fraction=args.length_fraction,
+                                  progress=_progress("objects"))
         for n in sorted({min(args.paper_size, args.trials), args.trials}):
             out.append(f"## {n} trials per shape\n")
             _table2(s_rows, n, out)
@@ -427,28 +362,14 @@ def main(argv=None) -> int:
             _index_times(out)
         if args.baseline_trials:
             out.append("## Baseline: Open3D\n")
-            _baseline(
-                surfaces,
-                s_rows,
-                min(args.baseline_trials, args.trials),
-                "the paper surfaces",
-                out,
-                args.length_fraction,
-            )
-            _baseline(
-                objects,
-                o_rows,
-                min(args.baseline_trials, args.trials),
-                "the experiment objects",
-                out,
-                args.length_fraction,
-            )
+            _baseline(surfaces, s_rows, min(args.baseline_trials, args.trials),
+                      "the paper surfaces", out, args.length_fraction)
+            _baseline(objects, o_rows, min(args.baseline_trials, args.trials),
+                      "the experiment objects", out, args.length_fraction)
         if args.figure is not None:
             _figure6(surfaces, s_rows, min(args.paper_size, args.trials), args.figure)
-            out.append(
-                f"Figure 6 (the first {min(args.paper_size, args.trials)} trials per "
-                f"surface): `{args.figure}`.\n"
-            )
+            out.append(f"Figure 6 (the first {min(args.paper_size, args.trials)} trials per "
+                       f"surface): `{args.figure}`.\n")
         ok = all(t.recognised for t in s_rows)
     out.append(f"Report made in {time.perf_counter() - t_start:.0f} s.")
     text = "\n".join(out) + "\n"

@@ -65,7 +65,9 @@ def _outsiders(rng: np.random.Generator) -> list[tuple[str, trimesh.Trimesh]]:
     )
     plane = trimesh.Trimesh(verts, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
     small = trimesh.creation.icosphere(subdivisions=5, radius=float(rng.uniform(0.1, 0.13)))
-    thin = trimesh.creation.cylinder(radius=float(rng.uniform(0.08, 0.1)), height=2.0, sections=256)
+    thin = trimesh.creation.cylinder(
+        radius=float(rng.uniform(0.08, 0.1)), height=2.0, sections=256
+    )
     return [("flat face", plane), ("small sphere", small), ("thin cylinder", thin)]
 
 
@@ -124,21 +126,13 @@ def run(trials: int, cache_dir: str | None, log) -> list[dict]:
         plane = _outsiders(rng)[0][1]
         for _ in range(3 * trials):
             sim = meshrec.simulate_touch(plane, length=0.5, noise=0.002, rng=rng)
-            _recognise(
-                sim.touch,
-                round_lib,
-                "outside: flat face vs round library",
-                "flat face",
-                False,
-                rows,
-                log,
-            )
+            _recognise(sim.touch, round_lib, "outside: flat face vs round library",
+                       "flat face", False, rows, log)
         for _ in range(trials):  # other generated shapes (not a target: may look alike)
             for shape in bench.shape_set(7, seed=5):
                 sim = meshrec.simulate_touch(shape.mesh, length=0.3, noise=0.002, rng=rng)
-                _recognise(
-                    sim.touch, libs[2], "outside: other shapes", shape.name, False, rows, log
-                )
+                _recognise(sim.touch, libs[2], "outside: other shapes", shape.name, False,
+                           rows, log)
     for group, folder, per in PAPER:
         lib = meshrec.ModelLibrary.from_folder(
             meshrec.bundled_models_dir(folder), cache_dir=cache_dir
@@ -153,9 +147,8 @@ def run(trials: int, cache_dir: str | None, log) -> list[dict]:
 # ------------------------------------------------------------------------------- scoring
 def _probabilities(row, ess_fraction=defaults.SCORE_ESS_FRACTION):
     names = [m for m, _ in row["models"]]
-    ll = scoring.log_likelihoods(
-        [r for _, r in row["models"]], row["n"], row["noise"], ess_fraction=ess_fraction
-    )
+    ll = scoring.log_likelihoods([r for _, r in row["models"]], row["n"], row["noise"],
+                                 ess_fraction=ess_fraction)
     return names, scoring.posterior(ll)
 
 
@@ -216,7 +209,8 @@ def verdict_stats(rows) -> dict:
         "in_plausible": inside,
         "top1": top1,
         "misfit_ge_10": sum(q >= 10 for q in ratio),
-        "unknown_misfit_ge_10": sum(x[2].verdict == "unknown" and x[2].fit_ratio >= 10 for x in v),
+        "unknown_misfit_ge_10": sum(x[2].verdict == "unknown" and x[2].fit_ratio >= 10
+                                    for x in v),
         "median_misfit": float(np.median(ratio)) if ratio else float("nan"),
     }
 
@@ -288,27 +282,22 @@ def report(rows, command: str, out_md: Path, out_png: Path) -> str:
         lines.append(f"| {label} | {a}/{b} = {100 * v:.1f}% | {'yes' if ok else 'NO'} |")
 
     issue = verdict_stats([r for r in rows if "(issue 11)" in r["group"]])
-    target(
-        "issue condition: recognised answers right (>= 98%)",
-        issue["recognised_right"],
-        issue["recognised"],
-        0.98,
-    )
-    target("issue condition: truth in plausible (>= 95%)", issue["in_plausible"], issue["n"], 0.95)
+    target("issue condition: recognised answers right (>= 98%)", issue["recognised_right"],
+           issue["recognised"], 0.98)
+    target("issue condition: truth in plausible (>= 95%)", issue["in_plausible"], issue["n"],
+           0.95)
     target("issue condition: decisive (>= 50%)", issue["recognised"], issue["n"], 0.5)
     target("issue condition: unknown (<= 2%)", issue["unknown"], issue["n"], 0.02, False)
     inside = verdict_stats([r for r in rows if r["in_library"]])
-    target("all in-library touches: unknown (<= 2%)", inside["unknown"], inside["n"], 0.02, False)
+    target("all in-library touches: unknown (<= 2%)", inside["unknown"], inside["n"], 0.02,
+           False)
     paper = verdict_stats([r for r in rows if r["group"].startswith("paper")])
     target("paper protocol: recognised (>= 95%)", paper["recognised"], paper["n"], 0.95)
-    target("paper protocol: top-1 right (goal: unchanged)", paper["top1"], paper["n"], 1.0)
+    target("paper protocol: top-1 right (goal: unchanged)", paper["top1"],
+           paper["n"], 1.0)
     out = verdict_stats([r for r in rows if not r["in_library"]])
-    target(
-        "outside, misfit >= 10 noise: unknown (>= 95%)",
-        out["unknown_misfit_ge_10"],
-        out["misfit_ge_10"],
-        0.95,
-    )
+    target("outside, misfit >= 10 noise: unknown (>= 95%)", out["unknown_misfit_ge_10"],
+           out["misfit_ge_10"], 0.95)
     t = np.array([r["seconds"] for r in rows])
     ts = np.array([r["scoring_seconds"] for r in rows])
     tw = np.array([r["widened_seconds"] for r in rows])
@@ -343,22 +332,15 @@ def _plot(rows, groups, path: Path) -> None:
         if not rs:
             continue
         rel = reliability(rs)
-        ax.plot([x[3] for x in rel], [x[4] for x in rel], marker="o", ms=4, lw=1, label=g)
+        ax.plot([x[3] for x in rel], [x[4] for x in rel], marker="o", ms=4, lw=1,
+                label=g)
     held = [r for r in rows if r["in_library"] and not r["group"].startswith("train")]
     rel = reliability(held)
-    ax.plot(
-        [x[3] for x in rel],
-        [x[4] for x in rel],
-        color="k",
-        lw=2,
-        marker="s",
-        ms=5,
-        label="all held out (pooled)",
-    )
+    ax.plot([x[3] for x in rel], [x[4] for x in rel], color="k", lw=2, marker="s", ms=5,
+            label="all held out (pooled)")
     for x in rel:
-        ax.annotate(
-            str(x[2]), (x[3], x[4]), textcoords="offset points", xytext=(4, -10), fontsize=7
-        )
+        ax.annotate(str(x[2]), (x[3], x[4]), textcoords="offset points", xytext=(4, -10),
+                    fontsize=7)
     ax.set_xlabel("predicted probability of the top model")
     ax.set_ylabel("fraction right")
     ax.set_xlim(0, 1.02)
@@ -376,11 +358,8 @@ def main(argv=None) -> int:
     ap.add_argument("--trials", type=int, default=1, help="multiplier of touches per group")
     ap.add_argument("--cache-dir", default=None)
     ap.add_argument("--from-raw", default=None, help="re-score recorded touches (no recognition)")
-    ap.add_argument(
-        "--measured-by",
-        default=None,
-        help="with --from-raw: the command that recorded the touches (for the header)",
-    )
+    ap.add_argument("--measured-by", default=None,
+                    help="with --from-raw: the command that recorded the touches (for the header)")
     ap.add_argument("--raw", default=str(ROOT / "reports" / "calibration_raw.json"))
     ap.add_argument("--out", default=str(ROOT / "reports" / "calibration.md"))
     ap.add_argument("--plot", default=str(ROOT / "docs" / "images" / "reliability.png"))
@@ -390,7 +369,6 @@ def main(argv=None) -> int:
     if args.from_raw:
         rows = json.loads(Path(args.from_raw).read_text())
     else:
-
         def log(msg):
             sys.stderr.write(msg + "\n")
 

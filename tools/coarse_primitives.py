@@ -11,8 +11,8 @@ sections, or subdivided to edges of 1/100 of its size) with the default protocol
 regions: a touch whose curves cross a sharp edge of the twin is redrawn. Every touch is
 recognised against the whole coarse library. Prints, per shape: right (the best model is
 the touched one), the verdicts (recognised / ambiguous / unknown), the wrong answers given
-as recognised and how many of them came without any warning, and the median time. Uses only meshrec's
-public API.
+as recognised and how many of them came without any warning, and the median time. Uses
+only meshrec's public API.
 """
 
 from __future__ import annotations

@@ -63,24 +63,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--trials", type=int, default=10, help="touches per shape")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     p.add_argument(
-        "--libraries",
-        nargs="+",
-        default=["surfaces", "objects"],
-        choices=["surfaces", "objects"],
-        help="bundled libraries to report on",
+        "--libraries", nargs="+", default=["surfaces", "objects"],
+        choices=["surfaces", "objects"], help="bundled libraries to report on",
     )
     p.add_argument("--cache-dir", type=Path, default=None, help="index cache folder")
     args = p.parse_args(argv)
 
-    print(
-        f"meshrec {meshrec.__version__}, Python {platform.python_version()}, "
-        f"{platform.machine()}, {args.trials} seeded touches per shape from seed {args.seed}"
-    )
+    print(f"meshrec {meshrec.__version__}, Python {platform.python_version()}, "
+          f"{platform.machine()}, {args.trials} seeded touches per shape from seed {args.seed}")
     print()
-    print(
-        "| library | shape | recognised | loc. error median | max | "
-        "best wrong / right error (min) | time median (s) | max (s) |"
-    )
+    print("| library | shape | recognised | loc. error median | max | "
+          "best wrong / right error (min) | time median (s) | max (s) |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     all_ok = True
     for library_name in args.libraries:
@@ -88,12 +81,10 @@ def main(argv: list[str] | None = None) -> int:
         for name in library.names:
             ok, errs, times, ratios = _row(library, library_name, name, args.trials, args.seed)
             all_ok &= ok == args.trials
-            loc = f"{np.median(errs):.4f} | {np.max(errs):.4f}" if errs else "n/a | n/a"
+            loc = (f"{np.median(errs):.4f} | {np.max(errs):.4f}" if errs else "n/a | n/a")
             ratio = f"{np.min(ratios):.2f}" if ratios else "no rival"
-            print(
-                f"| {library_name} | {name} | {ok}/{args.trials} | {loc} | {ratio} | "
-                f"{np.median(times):.2f} | {np.max(times):.2f} |"
-            )
+            print(f"| {library_name} | {name} | {ok}/{args.trials} | {loc} | {ratio} | "
+                  f"{np.median(times):.2f} | {np.max(times):.2f} |")
             sys.stdout.flush()
     return 0 if all_ok else 1
 

@@ -65,7 +65,10 @@ def main(argv=None) -> int:
         margins = np.array([r[1] for r in rows])
         total += len(rows)
         inside_total += inside
-        print(f"| {name} | {inside}/{len(rows)} | {margins.min():.2f} | {np.median(margins):.2f} |")
+        print(
+            f"| {name} | {inside}/{len(rows)} | {margins.min():.2f} "
+            f"| {np.median(margins):.2f} |"
+        )
     print()
     print(f"all surfaces: {inside_total}/{total} true contacts inside the lookup window")
     return 0 if inside_total == total else 1

@@ -49,17 +49,13 @@ def main(argv=None) -> int:
     cmd = " ".join(["python tools/ycb_report.py", *(argv if argv is not None else sys.argv[1:])])
     emit("# YCB report\n")
     emit(f"Command: `{cmd}`; meshrec {meshrec.__version__}.\n")
-    emit(
-        f"{len(library.names)} models indexed in {build:.1f} s; {args.trials} touches per "
-        f"object, seeds {args.seed}..{args.seed + args.trials - 1}, noise +-{args.noise:g}; "
-        "each touch recognised against the whole folder."
-    )
+    emit(f"{len(library.names)} models indexed in {build:.1f} s; {args.trials} touches per "
+         f"object, seeds {args.seed}..{args.seed + args.trials - 1}, noise +-{args.noise:g}; "
+         "each touch recognised against the whole folder.")
     emit()
-    emit(
-        "| object | faces | recognised | at the oracle's minimum | loc. error median | max "
-        "| right error median | best wrong / right (min) | rejected by lookup (mean of models) "
-        "| time median (s) |"
-    )
+    emit("| object | faces | recognised | at the oracle's minimum | loc. error median | max "
+         "| right error median | best wrong / right (min) | rejected by lookup (mean of models) "
+         "| time median (s) |")
     emit("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     total = 0
     for name in shapes:
@@ -68,22 +64,17 @@ def main(argv=None) -> int:
         total += ok
         loc = np.array([t.loc_error for t in rows])
         right = np.array([t.right_error for t in rows if t.right_error is not None])
-        ratios = [
-            t.wrong_error / t.right_error
-            for t in rows
-            if t.wrong_error is not None and t.right_error
-        ]
+        ratios = [t.wrong_error / t.right_error for t in rows
+                  if t.wrong_error is not None and t.right_error]
         rejected = np.mean([sum(e is None for e in t.errors.values()) for t in rows])
         at_oracle = sum(
             t.right_error is not None and t.right_error <= 1.05 * t.oracle_error for t in rows
         )
-        emit(
-            f"| {name} | {len(library[name].faces):,} | {ok}/{len(rows)} "
-            f"| {at_oracle}/{len(rows)} "
-            f"| {np.median(loc):.2e} | {loc.max():.2e} | {np.median(right):.2e} "
-            f"| {min(ratios) if ratios else float('nan'):.2f} | {rejected:.1f} "
-            f"| {np.median([t.seconds for t in rows]):.2f} |"
-        )
+        emit(f"| {name} | {len(library[name].faces):,} | {ok}/{len(rows)} "
+             f"| {at_oracle}/{len(rows)} "
+             f"| {np.median(loc):.2e} | {loc.max():.2e} | {np.median(right):.2e} "
+             f"| {min(ratios) if ratios else float('nan'):.2f} | {rejected:.1f} "
+             f"| {np.median([t.seconds for t in rows]):.2f} |")
     emit()
     emit(f"recognised {total}/{len(shapes) * args.trials}")
     if args.out is not None:

@@ -129,7 +129,9 @@ def _parser() -> argparse.ArgumentParser:
     models_arg(i)
     i.add_argument("--force", action="store_true", help="rebuild even if cached")
 
-    m = sub.add_parser("models", help="list the bundled model sets, or what a model folder holds")
+    m = sub.add_parser(
+        "models", help="list the bundled model sets, or what a model folder holds"
+    )
     m.add_argument(
         "folder", nargs="?", default=None, metavar="DIR|SET", help="a model folder or set"
     )
@@ -328,7 +330,8 @@ def _run_batch(args, names, folder, units) -> int:
     )
     if failed:
         raise ValueError(
-            f'{failed} of {len(names)} touch files failed (their JSON lines have an "error" key)'
+            f"{failed} of {len(names)} touch files failed (their JSON lines have an "
+            '"error" key)'
         )
     return 0
 

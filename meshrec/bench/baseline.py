@@ -158,7 +158,9 @@ class BaselineModel:
         if key not in self.features:
             o3d = load_open3d()
             param = o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=100)
-            self.features[key] = o3d.pipelines.registration.compute_fpfh_feature(self.cloud, param)
+            self.features[key] = o3d.pipelines.registration.compute_fpfh_feature(
+                self.cloud, param
+            )
         return self.features[key]
 
 
@@ -227,18 +229,10 @@ def baseline_register(
         o3d.utility.random.seed(int(rng.integers(2**31 - 1)))
         ransac_dist = defaults.BASELINE_RANSAC_DISTANCE * extent
         coarse = reg.registration_ransac_based_on_feature_matching(
-            src,
-            dst,
-            f_src,
-            f_dst,
-            False,
-            ransac_dist,
-            reg.TransformationEstimationPointToPoint(False),
-            3,
-            [
-                reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-                reg.CorrespondenceCheckerBasedOnDistance(ransac_dist),
-            ],
+            src, dst, f_src, f_dst, False, ransac_dist,
+            reg.TransformationEstimationPointToPoint(False), 3,
+            [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+             reg.CorrespondenceCheckerBasedOnDistance(ransac_dist)],
             reg.RANSACConvergenceCriteria(defaults.BASELINE_RANSAC_ITERATIONS, 0.999),
         )
         candidates = [icp(coarse.transformation).transformation]

@@ -126,13 +126,8 @@ def _loc(name: str, p, q) -> float:
     return object_localisation_error(name, p, q)
 
 
-def paper_touch(
-    model,
-    seed: int,
-    n_points: int | None = None,
-    noise: float | None = None,
-    length_fraction: float = defaults.SIM_LENGTH_FRACTION,
-):
+def paper_touch(model, seed: int, n_points: int | None = None, noise: float | None = None,
+                length_fraction: float = defaults.SIM_LENGTH_FRACTION):
     """A seeded touch by the paper's protocols.
 
     On the experiment objects (names in :data:`OBJECT_SIDES`) the contact is drawn on the
@@ -172,17 +167,10 @@ def paper_touch(
     )
 
 
-def run_trials(
-    library,
-    shapes,
-    trials: int,
-    first_seed: int = 0,
-    *,
-    length_fraction: float = defaults.SIM_LENGTH_FRACTION,
-    n_points: int | None = None,
-    noise: float | None = None,
-    progress=None,
-) -> list[Trial]:
+def run_trials(library, shapes, trials: int, first_seed: int = 0, *,
+               length_fraction: float = defaults.SIM_LENGTH_FRACTION,
+               n_points: int | None = None, noise: float | None = None,
+               progress=None) -> list[Trial]:
     """Simulate seeded touches on ``shapes`` and recognise each against ``library``.
 
     Parameters
@@ -231,29 +219,24 @@ def run_trials(
             times = StageTimes()
             for r in rec.ranking:
                 times = times + r.times
-            out.append(
-                Trial(
-                    shape=shape,
-                    seed=seed,
-                    best=rec.best.model if rec.best is not None else None,
-                    lookup_only=all(r.rejected for r in wrong),
-                    right_error=right.error,
-                    wrong_error=min(wrong_errors) if wrong_errors else None,
-                    errors={r.model: r.error for r in rec.ranking},
-                    true_contact=sim.contact,
-                    found_contact=right.contact,
-                    loc_error=(
-                        _loc(shape, sim.contact, right.contact)
-                        if not right.rejected
-                        else float("inf")
-                    ),
-                    oracle_error=oracle.error,
-                    oracle_loc=_loc(shape, sim.contact, oracle.contact),
-                    seconds=seconds,
-                    geometry_seconds=max(rec.seconds - sum(r.seconds for r in rec.ranking), 0.0),
-                    times=times,
-                )
-            )
+            out.append(Trial(
+                shape=shape,
+                seed=seed,
+                best=rec.best.model if rec.best is not None else None,
+                lookup_only=all(r.rejected for r in wrong),
+                right_error=right.error,
+                wrong_error=min(wrong_errors) if wrong_errors else None,
+                errors={r.model: r.error for r in rec.ranking},
+                true_contact=sim.contact,
+                found_contact=right.contact,
+                loc_error=(_loc(shape, sim.contact, right.contact)
+                           if not right.rejected else float("inf")),
+                oracle_error=oracle.error,
+                oracle_loc=_loc(shape, sim.contact, oracle.contact),
+                seconds=seconds,
+                geometry_seconds=max(rec.seconds - sum(r.seconds for r in rec.ranking), 0.0),
+                times=times,
+            ))
             if progress is not None:
                 progress(len(out), total)
     return out

@@ -595,7 +595,9 @@ def _save_job(path: Path, scene: _Scene, K: np.ndarray, E: np.ndarray, w: int, h
         vertices=scene.vertices,
         faces=scene.faces,
         contact=scene.contact,
-        true_contact=(np.full(3, np.nan) if scene.true_contact is None else scene.true_contact),
+        true_contact=(
+            np.full(3, np.nan) if scene.true_contact is None else scene.true_contact
+        ),
         candidates=scene.candidates,
         center=scene.center,
         eye=scene.eye,

@@ -279,7 +279,9 @@ def folder_mesh_files(
     try:
         entries = sorted(p for p in root.iterdir() if p.is_file())
     except OSError as exc:
-        raise ValueError(f"model folder {str(root)!r} cannot be listed ({exc.strerror})") from exc
+        raise ValueError(
+            f"model folder {str(root)!r} cannot be listed ({exc.strerror})"
+        ) from exc
     files = [p for p in entries if is_mesh_file(p)]
     others = [
         p

@@ -344,7 +344,9 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
     # also keeps the OBJ reader from parsing material libraries at all.
     extra = {"skip_materials": True} if suffix == ".obj" else {}
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=suffix[1:], process=False, **extra)
+        loaded = trimesh.load(
+            io.BytesIO(data), file_type=suffix[1:], process=False, **extra
+        )
         if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
             clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
             if clouds and len(clouds) == len(loaded.geometry):

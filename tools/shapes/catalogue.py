@@ -137,3 +137,4 @@ def all_models():
         ),
     ]
     return models
+

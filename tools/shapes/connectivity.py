@@ -141,3 +141,4 @@ def faces_valid(xyz, faces):
     (m,) bool ndarray
     """
     return signed_area(xyz[:, :2], faces) > 0.0
+

@@ -36,3 +36,4 @@ def sphere_distance(points, radius):
     """First-order distance of ``(k, 3)`` points to the sphere of the given radius."""
     r = np.linalg.norm(points, axis=1)
     return np.abs(r**2 - radius**2) / (2.0 * r)
+

@@ -32,3 +32,4 @@ def write_model(model, out):
     mesh = trimesh.load(path, file_type="stl", force="mesh")
     check_mesh(mesh, model.closed, model.name)
     return path, mesh
+

@@ -63,3 +63,4 @@ def measure_mesh(mesh, distance):
         "dev_max": float(dev.max()),
         "dev_rms": float(np.sqrt(np.mean(dev**2))),
     }
+

@@ -139,3 +139,4 @@ def mesh_patch(patch, faces_wanted, seed):
         xyz = patch.project(xyz)
         xyz, faces = relax(xyz, faces, fixed, patch, FINE_STEPS)
     return trimesh.Trimesh(xyz, faces, process=True)
+

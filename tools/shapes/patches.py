@@ -128,3 +128,4 @@ def crossed_trough_patch():
         lambda x, y: x**2 * y**2,
         lambda x, y: (2.0 * x * y**2, 2.0 * x**2 * y),
     )
+

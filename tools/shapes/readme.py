@@ -90,3 +90,4 @@ the smallest angle of any triangle. The numbers below are measured by the script
 files as written.
 
 {table}"""
+

@@ -48,7 +48,9 @@ def flip_to_delaunay(xyz, faces, max_passes=50):
         second = rev[first]
         u, v = u[first], v[first]
         a, b = opp[first], opp[second]
-        excess = corner_angle(xyz[a], xyz[u], xyz[v]) + corner_angle(xyz[b], xyz[v], xyz[u]) - np.pi
+        excess = (
+            corner_angle(xyz[a], xyz[u], xyz[v]) + corner_angle(xyz[b], xyz[v], xyz[u]) - np.pi
+        )
         cand = np.nonzero(excess > 1e-9)[0]
         new1 = np.column_stack([u[cand], b[cand], a[cand]])
         new2 = np.column_stack([b[cand], v[cand], a[cand]])
@@ -152,3 +154,4 @@ def relax(xyz, faces, fixed, patch, steps):
         faces = flip_to_delaunay(xyz, faces)
         xyz = spring_step(xyz, faces, fixed, patch)
     return xyz, flip_to_delaunay(xyz, faces)
+

@@ -161,3 +161,4 @@ def elliptic_prism(a, b, height, faces_wanted):
         faces.append(index[cap])
         offset += len(inner)
     return trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=True)
+
