@@ -348,6 +348,40 @@ RECOGNISE_P_VALUE = 0.01
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
 
+# --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
+#: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian
+#: of the point-to-surface residuals along it is below this fraction of the largest (rows
+#: [n, (x - c) / L x n], L the points' RMS spread). Measured with the default simulated
+#: touches (3 seeds each): a face of a box and the side of a fine cylinder give 1e-12 and
+#: 1e-6, the bundled sphere 6e-5 to 1.4e-4 (three turns about its centre, truly free);
+#: the most nearly free motion of the bundled ellipsoid 1.4e-3 to 9e-3, of the paper's
+#: monkey saddle 9e-3 to 3e-2. A 32-section trimesh cylinder's facets pin the turn about
+#: its axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
+POSE_FREE_RATIO = 5e-4
+#: A free twist counts as a turn when its rotational part is at least this (unit twists,
+#: rotation scaled by L); the rest are slides.
+POSE_TURN_FRACTION = 0.1
+#: A data point whose surface normal turns by more than this many degrees when it moves
+#: by POSE_EDGE_STEP times the points' spread along a tangent lies at a crease (a flat
+#: touch reaching a box's edge within the noise): the pose-freedom test leaves it out, as
+#: its constraint is one-sided. Above the facet angles of the bundled curved models.
+POSE_EDGE_DEG = 20.0
+#: ... the step of that probe, as a fraction of the points' RMS spread.
+POSE_EDGE_STEP = 0.02
+#: A free motion of the pose is a symmetry of the model (a turn about a body of
+#: revolution's axis, about a sphere's centre: not an ambiguity of the pose) when the
+#: model's surface points (at most SYMMETRY_POINTS vertices and face centres), slid by
+#: SYMMETRY_SLIDE x the model's bounding-box diagonal or turned by SYMMETRY_TURN_RAD,
+#: land on its surface within an RMS of max(SYMMETRY_NOISE x the touches' noise,
+#: SYMMETRY_TOL x the diagonal). The turn is small enough that an axis estimated from
+#: noisy data (off by a few noise levels) still passes, large enough that a box turned
+#: about a face normal moves its corners by about 0.1 x its size.
+SYMMETRY_POINTS = 3000
+SYMMETRY_SLIDE = 0.1
+SYMMETRY_TURN_RAD = 0.2
+SYMMETRY_NOISE = 3.0
+SYMMETRY_TOL = 2e-3
+
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the
 #: least joint RMS at their starting pose first (each single-touch registration gives up
@@ -482,3 +516,30 @@ PAIR_REFINE_SEEDS = 32
 #: best, is searched again from pairs of touches before the scores are trusted. Its joint
 #: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
 PAIR_SEARCH_GAP = 3.0
+
+# --- ball-tipped probes (meshrec.contact.probe, meshrec.recognition.probing) ---------------
+#: A touch recognised without a probe radius is tested for an undeclared ball tip: the
+#: data are refined onto the best model's surface offset by R for R up to this fraction of
+#: the touch's size (half its largest extent from the centroid; and of the model's size).
+PROBE_OFFSET_MAX_FRACTION = 0.5
+#: ... and a ProbeOffsetWarning is raised when the best R improves the fit by more than
+#: this chi-squared value (n (rms0^2 - rms^2) / noise^2, one added parameter) ...
+PROBE_OFFSET_CHI2 = 25.0
+#: ... and R is more than this many noise deviations.
+PROBE_OFFSET_MIN_NOISE = 3.0
+# --------------------------------------------------------------------------- scale
+#: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
+#: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit
+#: direction: spherical harmonics up to this order), the range of its amplitude (fraction
+#: of the radius) and of the anisotropic scale along each axis.
+BLOB_SUBDIVISIONS = 4
+BLOB_DEGREE = 3
+BLOB_AMPLITUDE = (0.15, 0.35)
+BLOB_ANISOTROPY = (0.7, 1.3)
+#: Parallel recognition (meshrec.recognition.workers): local processes are used only for
+#: libraries of at least this many models (below, starting them costs more than they
+#: save); the models are split into this many chunks per worker (even loads, few round
+#: trips); seconds to wait for a Dask scheduler to answer.
+PARALLEL_MIN_MODELS = 8
+PARALLEL_CHUNKS_PER_WORKER = 4
+DASK_CONNECT_SECONDS = 10.0

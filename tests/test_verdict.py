@@ -17,7 +17,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
-from meshrec.recognition import recognize as recognize_module
+from meshrec.recognition import workers as workers_module
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 SCRIPT = Path(sys.executable).with_name("meshrec")
@@ -91,13 +91,13 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
 
 
 def test_warnings_raised_inside_are_kept_and_passed_on(surfaces, monkeypatch):
-    real = recognize_module.register
+    real = workers_module.register
 
     def noisy(*args, **kwargs):
         warnings.warn("a test warning from register", UserWarning, stacklevel=2)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(recognize_module, "register", noisy)
+    monkeypatch.setattr(workers_module, "register", noisy)
     sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
     with pytest.warns(UserWarning, match="a test warning from register"):
         rec = meshrec.recognize(sim.touch, surfaces)

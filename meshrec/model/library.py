@@ -167,9 +167,21 @@ class ModelLibrary:
     ) -> ModelLibrary:
         if params is not None and not isinstance(params, IndexParams):
             raise ValueError(f"params must be an IndexParams or None, got {params!r}")
+        # The consolidated pack of the whole library (meshrec.model.pack), when valid.
+        from meshrec.model import pack
+
+        digests = pack.file_digests(files)
+        packed = None
+        if digests is not None and not force:
+            packed = pack.load_pack(files, digests, params or IndexParams(), cache_dir)
+        if packed is not None:
+            if progress is not None:  # the pack loads at once; report its models in turn
+                for i, path in enumerate(files):
+                    progress(i, len(files), path.stem)
+            return cls._checked(folder, packed[0], list(skipped) + list(packed[1]), what)
+        found = list(skipped)
         models: dict[str, ModelIndex] = {}
-        skipped: list[tuple[Path, str]] = list(skipped)
-        unusable: list[str] = []
+        skipped: list[tuple[Path, str]] = []
         n = len(files)
         for i, path in enumerate(files):
             if progress is not None:
@@ -194,23 +206,34 @@ class ModelLibrary:
                     reason = str(exc)
                 else:
                     models[path.stem] = model
-                    if not model.curvature.valid.any():
-                        unusable.append(
-                            f"model {path.stem!r} ({str(path)!r}): no surface site has a usable "
-                            f"curvature estimate ({len(model.mesh.faces)} faces: too coarse or "
-                            "degenerate), so no touch will ever match it"
-                        )
                     continue
             skipped.append((path, reason))
+        if models and digests is not None and digests == pack.file_digests(files):
+            # (not if a file changed while it was indexed: its digest would not match)
+            pack.write_pack(
+                files, digests, params or IndexParams(), list(models.values()), skipped, cache_dir
+            )
+        return cls._checked(folder, list(models.values()), found + skipped, what)
+
+    @classmethod
+    def _checked(cls, folder, models, skipped, what) -> ModelLibrary:
+        """The library of ``models`` (sorted by name), warning of skipped and unusable ones."""
         if not models:  # one error that says it all, rather than a warning per file
             raise ValueError(
                 f"no loadable mesh in {what}: " + "; ".join(f"{p.name}: {r}" for p, r in skipped)
             )
+        unusable = [
+            f"model {m.name!r} ({str(m.path)!r}): no surface site has a usable curvature "
+            f"estimate ({len(m.mesh.faces)} faces: too coarse or degenerate), so no "
+            "touch will ever match it"
+            for m in models
+            if not m.curvature.valid.any()
+        ]
         for path, reason in skipped:
-            warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=3)
+            warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=4)
         for message in unusable:
-            warnings.warn(message, LibraryWarning, stacklevel=3)
-        ordered = tuple(models[name] for name in sorted(models))
+            warnings.warn(message, LibraryWarning, stacklevel=4)
+        ordered = tuple(sorted(models, key=lambda m: m.name))
         return cls(folder=folder, models=ordered, skipped=tuple(skipped))
 
     @property

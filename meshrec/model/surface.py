@@ -4,8 +4,9 @@ smooth surface the local search works on.
 :class:`SurfaceQuery` is the small interface the registration uses (a
 :class:`typing.Protocol`, so that a faster backend can replace the default without
 inheriting from it); :class:`AabbSurface` is the default, answering closest-point queries
-with libigl's AABB tree over the triangles (built when it is created or unpickled; never
-cached or pickled).
+with libigl's AABB tree over the triangles (built on the first query, so that loading a
+library of a thousand models builds none: about 6 ms per 5,000-face model; never cached
+or pickled).
 
 The smooth surface: the flat triangles of a mesh of a curved surface lie inside or outside
 it by up to a sagitta, so the distance to the flat faces ripples with the faces, and those
@@ -18,6 +19,7 @@ minus the patch's height.
 from __future__ import annotations
 
 import functools
+import threading
 from dataclasses import dataclass, field, fields
 from typing import Protocol, runtime_checkable
 
@@ -82,16 +84,28 @@ class AabbSurface:
 
     mesh: MeshData
     edge_bulge: np.ndarray = field(repr=False)
-    _aabb: igl.AABB = field(init=False, repr=False)
+    _aabb: igl.AABB | None = field(init=False, repr=False, default=None)
+    _aabb_lock: threading.Lock = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         if not isinstance(self.mesh, MeshData):
             raise TypeError(f"mesh must be a MeshData, got {type(self.mesh).__name__}")
         bulge = readonly(self.edge_bulge, np.float64, (len(self.mesh.faces), 3), "edge_bulge")
         object.__setattr__(self, "edge_bulge", bulge)
-        aabb = igl.AABB()
-        aabb.init(self.mesh.vertices, self.mesh.faces)
-        object.__setattr__(self, "_aabb", aabb)
+        object.__setattr__(self, "_aabb", None)
+        object.__setattr__(self, "_aabb_lock", threading.Lock())
+
+    def _tree(self) -> igl.AABB:
+        """The AABB tree, built on first use (once, also under concurrent queries)."""
+        tree = self._aabb
+        if tree is None:
+            with self._aabb_lock:
+                tree = self._aabb
+                if tree is None:
+                    tree = igl.AABB()
+                    tree.init(self.mesh.vertices, self.mesh.faces)
+                    object.__setattr__(self, "_aabb", tree)
+        return tree
 
     @classmethod
     def from_mesh(cls, mesh: MeshData, crease_angle_deg: float) -> AabbSurface:
@@ -150,7 +164,7 @@ class AabbSurface:
             raise ValueError(f"points must have shape (n, 3), got {P.shape}")
         if not np.isfinite(P).all():
             raise ValueError("points must be finite, got NaN or inf")
-        sqr, face, closest = self._aabb.squared_distance(self.mesh.vertices, self.mesh.faces, P)
+        sqr, face, closest = self._tree().squared_distance(self.mesh.vertices, self.mesh.faces, P)
         return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
 
     def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:

@@ -5,6 +5,12 @@ closed, else both), the model's curvature sites whose curvatures match the estim
 the curves' common point are looked up and spread (see
 :mod:`meshrec.registration.candidates`); each becomes a start for the later stages: its
 point and tangent frame on the model, and the data in the frame of its side.
+
+For a model seen through a ball-tipped probe (:func:`meshrec.model.probe.probe_model`)
+each side is the surface under the ball's centres
+(:func:`meshrec.contact.probe.surface_geometry`: the contact moved in by the tip radius
+along that side's normal, the curvatures corrected); a side the tip could not have
+traced (its convex curvature tighter than the tip) is not tried.
 """
 
 from __future__ import annotations
@@ -15,9 +21,11 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
+from meshrec.contact.probe import surface_geometry
 from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.model.probe import probe_radius_of
 from meshrec.registration.candidates import find_candidates
 from meshrec.registration.chart import SurfacePoint, tangent_frame
 
@@ -35,7 +43,9 @@ class ContactCandidates:
     points : (n, 3) float
         The touch's data points, touch frame.
     sides : tuple of LocalGeometry
-        The data frames tried: ``geometry``, then (when both sides are tried) its flip.
+        The data frames tried: ``geometry``, then (when both sides are tried) its flip
+        (for a model seen through a ball-tipped probe, the surface under the data on
+        each side, see :func:`surface_sides`).
     local_points : tuple of (n, 3) float
         The data points in each side's frame (origin at the contact, z along its normal).
     side : (c,) int
@@ -94,11 +104,18 @@ def surface_sides(geometry: LocalGeometry, touch: TouchData, model) -> tuple[Loc
     Returns
     -------
     tuple of LocalGeometry
-        ``(geometry,)`` or ``(geometry, geometry.flipped())``.
+        ``(geometry,)`` or ``(geometry, geometry.flipped())``; for a model seen through
+        a ball-tipped probe, the surface under the data on each side that a tip of that
+        radius could have traced (possibly none).
     """
     if touch.normal is not None and model.mesh.closed:
-        return (geometry,)
-    return (geometry, geometry.flipped())
+        sides = (geometry,)
+    else:
+        sides = (geometry, geometry.flipped())
+    radius = probe_radius_of(model)
+    if radius == 0.0:
+        return sides
+    return tuple(surface_geometry(s, radius) for s in sides if radius * s.k1 < 1.0)
 
 
 def lookup_candidates(

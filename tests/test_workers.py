@@ -1,0 +1,283 @@
+"""Tests for meshrec.recognition.workers: local processes and a Dask cluster give exactly
+the serial result."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import meshrec
+from meshrec import defaults
+from meshrec.recognition.workers import ModelWorkers, available_cores
+
+pytestmark = pytest.mark.filterwarnings("ignore::meshrec.model.resolution.ResolutionWarning")
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """Three ellipsoids of 1,280 faces (distinct axes) in a folder, indexed."""
+    root = tmp_path_factory.mktemp("workers")
+    folder = root / "models"
+    folder.mkdir()
+    for name, axes in (("a", (1.0, 0.8, 0.6)), ("b", (1.2, 1.0, 0.5)), ("c", (0.9, 0.9, 0.7))):
+        m = trimesh.creation.icosphere(subdivisions=3)
+        m.apply_scale(axes)
+        m.export(folder / f"{name}.stl")
+    cache = root / "cache"
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=cache), cache
+
+
+@pytest.fixture
+def parallel_small(monkeypatch):
+    """Let three models run in parallel (the threshold is for speed, not correctness)."""
+    monkeypatch.setattr(defaults, "PARALLEL_MIN_MODELS", 2)
+
+
+def _touches(lib):
+    sims = [meshrec.simulate_touch(lib["b"], rng=s) for s in (3, 4)]
+    return [s.touch for s in sims]
+
+
+def _same(a, b):
+    """Two recognitions agree in everything but their timings."""
+    assert a.verdict == b.verdict
+    assert a.plausible == b.plausible
+    assert a.reason == b.reason
+    assert a.warnings == b.warnings
+    assert a.probabilities == b.probabilities
+    assert a.touch_rms == b.touch_rms
+    for x, y in zip(a.ranking, b.ranking, strict=True):
+        assert x.model == y.model
+        assert x.error == y.error
+        assert x.rms == y.rms
+        assert x.candidates == y.candidates
+        assert x.reason == y.reason
+        if x.T_model_touch is not None:
+            np.testing.assert_array_equal(x.T_model_touch, y.T_model_touch)
+        assert len(x.poses) == len(y.poses)
+        for p, q in zip(x.poses, y.poses, strict=True):
+            np.testing.assert_array_equal(p.T_model_touch, q.T_model_touch)
+
+
+@pytest.mark.slow
+def test_local_processes_give_the_serial_result(library, parallel_small):
+    lib, cache = library
+    one, two = _touches(lib)
+    far = meshrec.simulate_touch(
+        trimesh.creation.icosphere(subdivisions=4, radius=0.1), length=0.2, rng=5
+    ).touch  # no model fits: the widened pass runs too
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = [meshrec.recognize(t, lib) for t in (one, [one, two], far)]
+    with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
+        assert workers.mode == "processes"
+        assert workers.workers == 2
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            parallel = [meshrec.recognize(t, lib, workers=workers) for t in (one, [one, two], far)]
+    assert serial[2].widened_seconds > 0
+    for s, p in zip(serial, parallel, strict=True):
+        _same(s, p)
+    assert serial[0].best.model == "b"
+    with pytest.raises(RuntimeError, match="closed"):
+        workers.register_each(one, list(lib), serial[0].geometry, "lm")
+
+
+def test_progress_and_warnings_come_back_from_the_workers(library, parallel_small):
+    lib, cache = library
+    one = _touches(lib)[0]
+    calls = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        serial = meshrec.recognize(one, lib)
+    with (
+        ModelWorkers(lib, workers=2, cache_dir=cache) as workers,
+        warnings.catch_warnings(record=True) as again,
+    ):
+        warnings.simplefilter("always")
+        rec = meshrec.recognize(one, lib, workers=workers, progress=lambda *a: calls.append(a))
+    _same(serial, rec)
+    assert [(w.category, str(w.message)) for w in caught] == [
+        (w.category, str(w.message)) for w in again
+    ]
+    assert sorted(c[2] for c in calls) == ["a", "b", "c"]
+    assert [c[0] for c in calls] == [0, 1, 2]
+    assert all(c[1] == 3 for c in calls)
+    assert rec.best.model == "b"
+
+
+def test_a_worker_seeing_another_file_is_an_error(tmp_path, parallel_small):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for i in range(2):
+        trimesh.creation.icosphere(subdivisions=2, radius=1.0 + i).export(folder / f"m{i}.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    trimesh.creation.icosphere(subdivisions=3).export(folder / "m0.stl")  # changed since
+    sim = meshrec.simulate_touch(lib["m1"], rng=1)
+    with (
+        ModelWorkers(lib, workers=2, cache_dir=tmp_path / "cache") as workers,
+        pytest.raises(ValueError, match="differs in the worker"),
+    ):
+        meshrec.recognize(sim.touch, lib, workers=workers)
+
+
+def test_few_models_or_one_worker_run_here(library):
+    lib, _ = library
+    assert ModelWorkers(lib, workers=1).mode == "serial"
+    assert ModelWorkers(lib, workers=4).mode == "serial"  # fewer than PARALLEL_MIN_MODELS
+    assert ModelWorkers(lib).workers == 1
+    assert available_cores() >= 1
+
+
+def test_models_of_another_library_are_refused(library):
+    lib, _ = library
+    one = _touches(lib)[0]
+    with pytest.raises(ValueError, match="must belong to the workers' library"):
+        meshrec.recognize(one, lib, workers=ModelWorkers([lib["a"], lib["b"]]))
+
+
+@pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2"])
+def test_bad_workers_are_refused(library, workers):
+    with pytest.raises(ValueError, match="workers must be a positive integer"):
+        ModelWorkers(library[0], workers=workers)
+
+
+def test_bad_arguments_are_refused(library):
+    lib, _ = library
+    with pytest.raises(TypeError, match="library must be"):
+        ModelWorkers("models")
+    with pytest.raises(TypeError, match="library\\[0\\]"):
+        ModelWorkers([object()])
+    with pytest.raises(ValueError, match="at least one model"):
+        ModelWorkers([])
+    with pytest.raises(TypeError, match="scheduler"):
+        ModelWorkers(lib, scheduler=8786)
+    with pytest.raises(TypeError, match="cache_dir"):
+        ModelWorkers(lib, cache_dir=3)
+    one = _touches(lib)[0]
+    with pytest.raises(ValueError, match="scheduler must be None"):
+        meshrec.recognize(one, lib, workers=ModelWorkers(lib), scheduler="tcp://x:1")
+
+
+def test_mixed_parameters_cannot_run_in_parallel(library, tmp_path, parallel_small):
+    lib, _ = library
+    coarse = meshrec.ModelIndex.from_file(
+        lib["a"].path,
+        params=meshrec.IndexParams(curvature_fraction=0.2),
+        cache_dir=tmp_path,
+    )
+    models = [coarse, lib["b"], lib["c"]]
+    assert ModelWorkers(models, workers=1).mode == "serial"  # fine here
+    with pytest.raises(ValueError, match="share one IndexParams"):
+        ModelWorkers(models, workers=2)
+
+
+def test_an_unreachable_scheduler_is_an_error(library, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(defaults, "DASK_CONNECT_SECONDS", 1.0)
+    lib, _ = library
+    with pytest.raises(ValueError, match="cannot be reached"):
+        ModelWorkers(lib, scheduler="tcp://127.0.0.1:9")
+
+
+def test_scheduler_without_distributed_is_an_import_error(library, monkeypatch):
+    lib, _ = library
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(ImportError, match="meshrec\\[dask\\]"):
+        ModelWorkers(lib, scheduler="tcp://127.0.0.1:8786")
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """A Dask scheduler and two worker processes, started with Dask's own commands on
+    the loopback interface; yields the scheduler's address."""
+    pytest.importorskip("distributed")
+    dask = shutil.which("dask", path=str(Path(sys.executable).parent))
+    if dask is None:
+        pytest.skip("the dask command is not installed")
+    info = tmp_path / "scheduler.json"
+    common = ["--no-dashboard"]
+    # the workers import the meshrec under test (this checkout), as a deployment's would
+    env = {**os.environ, "PYTHONPATH": str(Path(meshrec.__file__).resolve().parents[1])}
+    procs = [
+        subprocess.Popen(
+            [
+                dask,
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--scheduler-file",
+                str(info),
+                *common,
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+    ]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.is_file() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(info.read_text())["address"]
+        procs.append(
+            subprocess.Popen(
+                [
+                    dask,
+                    "worker",
+                    "--scheduler-file",
+                    str(info),
+                    "--nworkers",
+                    "2",
+                    "--nthreads",
+                    "1",
+                    "--host",
+                    "127.0.0.1",
+                    *common,
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                env=env,
+            )
+        )
+        from distributed import Client
+
+        with Client(address, timeout=30) as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
+    lib, cache = library
+    one, two = _touches(lib)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = [meshrec.recognize(t, lib) for t in (one, [one, two])]
+        with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
+            assert workers.mode == "dask"
+            assert workers.workers == 2
+            remote = [meshrec.recognize(t, lib, workers=workers) for t in (one, [one, two])]
+        # and through recognize's own short-lived client
+        once = meshrec.recognize(one, lib, scheduler=dask_cluster)
+    for s, r in zip(serial, remote, strict=True):
+        _same(s, r)
+    _same(serial[0], once)
