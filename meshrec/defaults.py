@@ -177,6 +177,9 @@ SITE_RANGE_FRACTION = 0.05
 #: sites along it are crease sites. Above the 22.5 degrees between the faces of an
 #: 80-face icosphere, below the 90 degrees of a box or a cylinder's rim.
 SITE_CREASE_ANGLE_DEG = 40.0
+#: A touch crosses a sharp edge (a warning) when at least this many of its points, placed
+#: by the best pose, lie on each of two or more smooth patches of the model.
+EDGE_MIN_POINTS = 3
 #: Adjacent vertex normals further apart than this (degrees) mark a crease: no smooth
 #: surface is implied across that edge, and the distance there is to the flat faces.
 SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0
