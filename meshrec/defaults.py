@@ -159,15 +159,27 @@ POSE_DUPLICATE_ANGLE_DEG = 1.0
 #: The default local-search method: "lm" (least squares on charts) or "steepest" (the paper's).
 SEARCH_METHOD = "lm"
 
-# --- model index: the per-vertex curvature table (Section 2.1) -----------------------------
-#: Radius of libigl's curvature ball as a fraction of sqrt(surface area) of the model, so
-#: that curvature is measured at a fixed fraction of the model's size (the touch curves are
-#: SIM_LENGTH_FRACTION of it long), whatever the mesh resolution.
-CURVATURE_SCALE_FRACTION = 0.02
-#: Smallest curvature ball radius, in mean edge lengths (fewer fails on coarse meshes).
-CURVATURE_MIN_RADIUS = 2
-#: Largest curvature ball radius, in mean edge lengths (the cost grows with its square).
-CURVATURE_MAX_RADIUS = 8
+# --- model index: the curvature table at sites on the smooth surface (Section 2.1, issue 13)
+#: Radius of the neighbourhood the curvature at a site is fitted over, as a fraction of
+#: sqrt(surface area) of the model (the touch curves are SIM_LENGTH_FRACTION of it long,
+#: so this is about 0.36 of their half-length), whatever the mesh resolution.
+CURVATURE_SCALE_FRACTION = 0.04
+#: Distance asked between curvature sites (Poisson-disk sampling of the surface), as a
+#: fraction of sqrt(surface area): about 4,000-5,000 sites per model (the sampling keeps
+#: about 0.3 / spacing^2 per unit area), 0.4-0.6 s to build on a small primitive.
+SITE_SPACING_FRACTION = 0.008
+#: Radius of the neighbourhood whose (K, H) make a site's range (what a touch straddling a
+#: change of curvature may report), as a fraction of sqrt(surface area): about half the
+#: touch curves' half-length.
+SITE_RANGE_FRACTION = 0.05
+#: Adjacent faces whose normals differ by more than this (degrees) meet at a sharp edge:
+#: normals are not blended across it, curvature is fitted on each side separately, and
+#: sites along it are crease sites. Above the 22.5 degrees between the faces of an
+#: 80-face icosphere, below the 90 degrees of a box or a cylinder's rim.
+SITE_CREASE_ANGLE_DEG = 40.0
+#: A touch crosses a sharp edge (a warning) when at least this many of its points, placed
+#: by the best pose, lie on each of two or more smooth patches of the model.
+EDGE_MIN_POINTS = 3
 #: Adjacent vertex normals further apart than this (degrees) mark a crease: no smooth
 #: surface is implied across that edge, and the distance there is to the flat faces.
 SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0

@@ -18,6 +18,7 @@ from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.cascade import cascade_register
+from meshrec.recognition.edges import warn_sharp_edges
 from meshrec.recognition.freedom import PoseFreedom, pose_freedom
 from meshrec.recognition.joint import (
     check_touch_sizes,
@@ -275,6 +276,7 @@ def recognize(
                 rec = _with_verdict(rec, fits, models, method, run)
             rec = _with_pose_freedom(rec, models)
             _warn_coarse(rec, models)
+            warn_sharp_edges(rec, models)
             if radius == 0.0 and len(touches) == 1:
                 warn_probe_offset(rec, models)
     finally:
