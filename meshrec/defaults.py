@@ -371,19 +371,6 @@ POSE_TURN_FRACTION = 0.1
 POSE_EDGE_DEG = 20.0
 #: ... the step of that probe, as a fraction of the points' RMS spread.
 POSE_EDGE_STEP = 0.02
-#: A free motion of the pose is a symmetry of the model (a turn about a body of
-#: revolution's axis, about a sphere's centre: not an ambiguity of the pose) when the
-#: model's surface points (at most SYMMETRY_POINTS vertices and face centres), slid by
-#: SYMMETRY_SLIDE x the model's bounding-box diagonal or turned by SYMMETRY_TURN_RAD,
-#: land on its surface within an RMS of max(SYMMETRY_NOISE x the touches' noise,
-#: SYMMETRY_TOL x the diagonal). The turn is small enough that an axis estimated from
-#: noisy data (off by a few noise levels) still passes, large enough that a box turned
-#: about a face normal moves its corners by about 0.1 x its size.
-SYMMETRY_POINTS = 3000
-SYMMETRY_SLIDE = 0.1
-SYMMETRY_TURN_RAD = 0.2
-SYMMETRY_NOISE = 3.0
-SYMMETRY_TOL = 2e-3
 
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the

@@ -49,11 +49,6 @@ class PoseFreedom:
         The Jacobian's singular values relative to the largest, descending.
     ratio : float
         The threshold below which a singular value counted as free.
-    symmetries : tuple of str
-        Free motions that map the whole model onto itself (for instance a turn about a
-        body of revolution's axis), left out of ``free``, ``slides`` and ``turns``: along
-        them every pose is the same placement of the object
-        (:func:`meshrec.recognition.symmetry.without_symmetries`). Empty when not tested.
     """
 
     free: int
@@ -64,7 +59,6 @@ class PoseFreedom:
     turn_points: np.ndarray
     singular_values: np.ndarray
     ratio: float
-    symmetries: tuple[str, ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -75,7 +69,7 @@ class PoseFreedom:
     def description(self) -> str:
         """A short phrase: "fixed", or e.g. "free: 2 slides and 1 turn"."""
         if self.free == 0:
-            return "fixed up to the model's symmetry" if self.symmetries else "fixed"
+            return "fixed"
         words = []
         if self.slides:
             words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
@@ -85,8 +79,7 @@ class PoseFreedom:
 
     def to_dict(self) -> dict:
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
-        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``,
-        ``symmetries``."""
+        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -97,7 +90,6 @@ class PoseFreedom:
             "turn_axes": self.turn_axes.tolist(),
             "turn_points": self.turn_points.tolist(),
             "singular_values": self.singular_values.tolist(),
-            "symmetries": list(self.symmetries),
         }
 
     def __repr__(self) -> str:

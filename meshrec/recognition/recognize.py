@@ -39,7 +39,6 @@ from meshrec.recognition.scoring import (
     pose_weights,
     posterior,
 )
-from meshrec.recognition.symmetry import without_symmetries
 from meshrec.recognition.units import check_units
 from meshrec.recognition.workers import ModelWorkers
 from meshrec.registration.objective import residuals
@@ -310,8 +309,7 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     normals, over = _pose_normals(model, y)
     if np.count_nonzero(~over) >= 6:
         y, normals = y[~over], normals[~over]
-    noise = float(rec.noise) if np.isfinite(rec.noise) else 0.0
-    freedom = without_symmetries(model, pose_freedom(y, normals), noise)
+    freedom = pose_freedom(y, normals)
     rec = dataclasses.replace(rec, pose_freedom=freedom)
     if freedom.free == 0:
         return rec
