@@ -354,12 +354,13 @@ LOOKUP_WIDEN_SCALE = 4.0
 # --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
 #: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian
 #: of the point-to-surface residuals along it is below this fraction of the largest (rows
-#: [n, (x - c) / L x n], L the points' RMS spread). Measured with the default simulated
-#: touches (3 seeds each): a face of a box and the side of a fine cylinder give 1e-12 and
-#: 1e-6, the bundled sphere 6e-5 to 1.4e-4 (three turns about its centre, truly free);
-#: the most nearly free motion of the bundled ellipsoid 1.4e-3 to 9e-3, of the paper's
-#: monkey saddle 9e-3 to 3e-2. A 32-section trimesh cylinder's facets pin the turn about
-#: its axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
+#: [n, (x - c) / L x n] at the points' closest points, L their RMS spread). Measured on
+#: default simulated touches recognised against the model alone (6 seeds each): a side
+#: touch of the bundled 80,000-face cylinder 2e-19 to 4e-7 (a slide along and a turn about
+#: the axis), the bundled sphere 3.5e-5 to 2.7e-4 (three turns about its centre); the most
+#: nearly free motion of the bundled ellipsoid 8.1e-4 to 9e-3, of the elliptic paraboloid
+#: 1.4e-3 to 4.3e-3 (fixed). A 32-section trimesh cylinder's facets pin the turn about its
+#: axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
 POSE_FREE_RATIO = 5e-4
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
@@ -371,6 +372,16 @@ POSE_TURN_FRACTION = 0.1
 POSE_EDGE_DEG = 20.0
 #: ... the step of that probe, as a fraction of the points' RMS spread.
 POSE_EDGE_STEP = 0.02
+#: A free turn is a symmetry of the model (a cylinder's or a sphere's axis) when the model
+#: turned by this many degrees about it stays on itself (not a divisor of 360, so that
+#: discrete symmetries such as a 12-fluted knob's do not pass) ...
+POSE_SYMMETRY_TURN_DEG = 37.0
+#: ... a free slide when the model slid by this fraction of its diagonal does ...
+POSE_SYMMETRY_SLIDE = 0.1
+#: ... to within this fraction of its diagonal, or twice the mesh's own chord error
+#: (its resolution check), whichever is larger; at most 2000 vertices are checked.
+POSE_SYMMETRY_TOLERANCE = 2e-3
+POSE_SYMMETRY_VERTICES = 2000
 
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the
