@@ -341,3 +341,21 @@ def test_the_command_line_refuses_a_negative_radius(models, tmp_path, capsys):
     out = ["simulate", str(models["tube"].path), "-o", str(tmp_path / "x.csv")]
     assert main([*out, "--probe-radius", "nan"]) == 2
     assert "probe_radius must be finite" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_several_touches_with_a_tip(models):
+    library = list(models.values())
+    touches = [
+        _touch(models["sphere"], TIP, seed=seed, transform=False).touch for seed in (1, 2, 3)
+    ]
+    rec, caught = _recognise(touches, library, probe_radius=TIP)
+    assert rec.best.model == "sphere"
+    assert not caught
+    # every touch fits the offset sphere to the noise at the one joint pose
+    assert max(rec.touch_rms) < 1.3 * NOISE / math.sqrt(3)
+    assert np.linalg.norm(rec.best.T_model_touch[:3, 3]) < 0.01  # the model frame itself
+    rec, caught = _recognise(touches, library)
+    assert len(caught) == 1
+    said = float(str(caught[0].message).split("the data lie about ")[1].split()[0])
+    assert said == pytest.approx(TIP, rel=0.1)

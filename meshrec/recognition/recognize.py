@@ -232,7 +232,7 @@ def recognize(
                 rec, fits = _rank_joint(touches, models, method, progress, geometries)
                 rec = _with_verdict(rec, fits, models, method)
             _warn_coarse(rec, models)
-            if radius == 0.0 and len(touches) == 1:
+            if radius == 0.0:
                 warn_probe_offset(rec, models)
     finally:
         # Pass every warning on as before (the caller's filters decide what is shown),
