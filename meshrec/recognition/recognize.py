@@ -214,7 +214,9 @@ def recognize(
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
     radius = touch_probe_radius(touches, probe_radius)
-    models = [probe_model(m, radius) for m in models]
+    # the models as the ball's centres see them (themselves for a point probe); the
+    # resolution warnings are the plain models' own (their cached resolution)
+    seen = [probe_model(m, radius) for m in models]
     caught: list = []
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -226,11 +228,11 @@ def recognize(
                 )
                 check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0])
-                rec = _with_verdict(rec, {}, models, method)
+                rec = _rank(touches[0], seen, method, progress, geometries[0])
+                rec = _with_verdict(rec, {}, seen, method)
             else:
-                rec, fits = _rank_joint(touches, models, method, progress, geometries)
-                rec = _with_verdict(rec, fits, models, method)
+                rec, fits = _rank_joint(touches, seen, method, progress, geometries)
+                rec = _with_verdict(rec, fits, seen, method)
             _warn_coarse(rec, models)
             if radius == 0.0:
                 warn_probe_offset(rec, models)
