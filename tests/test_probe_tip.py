@@ -359,3 +359,36 @@ def test_several_touches_with_a_tip(models):
     assert len(caught) == 1
     said = float(str(caught[0].message).split("the data lie about ")[1].split()[0])
     assert said == pytest.approx(TIP, rel=0.1)
+
+
+# ---------------------------------------------------------------------------- service
+def test_the_service_reads_the_radius_of_a_request_and_its_own(models):
+    from meshrec.app.commands_serve import Service, parse_body
+
+    sim = _touch(models["tube"], TIP, seed=1)
+    body = {"curves": [c.tolist() for c in sim.touch.curves], "probe_radius": TIP}
+    job = parse_body(json.dumps(body).encode(), advice=False)
+    assert job["touches"][0].probe_radius == TIP
+    service = Service(list(models.values()), None, probe_radius=TIP)
+    del body["probe_radius"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        doc = service.answer(parse_body(json.dumps(body).encode(), advice=False), advice=False)
+    assert doc["probe_radius"] == TIP
+    assert doc["best"] == "tube"
+    assert not any("ball tip" in w for w in doc["warnings"])
+
+
+def test_the_service_refuses_a_bad_radius(tmp_path):
+    import argparse
+
+    from meshrec.app.commands_serve import Service, run_serve
+
+    with pytest.raises(ValueError, match="--probe-radius must be >= 0"):
+        Service([], None, probe_radius=-1.0)
+    args = argparse.Namespace(
+        models=str(tmp_path), model_units=None, cache_dir=None, host="127.0.0.1", port=0,
+        probe_radius=float("nan"),
+    )
+    with pytest.raises(ValueError, match="--probe-radius must be finite"):
+        run_serve(args)
