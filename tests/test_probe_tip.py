@@ -392,3 +392,15 @@ def test_the_service_refuses_a_bad_radius(tmp_path):
     )
     with pytest.raises(ValueError, match="--probe-radius must be finite"):
         run_serve(args)
+
+
+def test_the_truth_file_records_the_tip(models, tmp_path):
+    sim = _touch(models["tube"], TIP, seed=1)
+    sim.write(tmp_path / "t.csv", tmp_path / "truth.json")
+    assert meshrec.read_truth(tmp_path / "truth.json").probe_radius == TIP
+    plain = _touch(models["tube"], 0.0, seed=1)
+    assert "probe_radius" not in plain.truth_dict()
+    doc = sim.truth_dict()
+    doc["probe_radius"] = -1.0
+    with pytest.raises(ValueError, match=r"truth\['probe_radius'\] must be >= 0"):
+        meshrec.Truth.from_dict(doc)
