@@ -254,9 +254,11 @@ def recognize(
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
     radius = touch_probe_radius(touches, probe_radius)
-    models = [probe_model(m, radius) for m in models]
+    # the models as the ball's centres see them (themselves for a point probe); the
+    # resolution warnings are the plain models' own (their cached resolution)
+    seen = [probe_model(m, radius) for m in models]
     caught: list = []
-    run, own = _runner(models, workers, scheduler)
+    run, own = _runner(seen, workers, scheduler)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -268,16 +270,16 @@ def recognize(
                 check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
                 rec = _rank(
-                    touches[0], models, method, progress, geometries[0], run, bool(cascade)
+                    touches[0], seen, method, progress, geometries[0], run, bool(cascade)
                 )
-                rec = _with_verdict(rec, {}, models, method, run)
+                rec = _with_verdict(rec, {}, seen, method, run)
             else:
-                rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
-                rec = _with_verdict(rec, fits, models, method, run)
-            rec = _with_pose_freedom(rec, models)
+                rec, fits = _rank_joint(touches, seen, method, progress, geometries, run)
+                rec = _with_verdict(rec, fits, seen, method, run)
+            rec = _with_pose_freedom(rec, seen)
             _warn_coarse(rec, models)
-            warn_sharp_edges(rec, models)
-            if radius == 0.0 and len(touches) == 1:
+            warn_sharp_edges(rec, seen)
+            if radius == 0.0:
                 warn_probe_offset(rec, models)
     finally:
         if own:
