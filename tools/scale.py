@@ -157,8 +157,9 @@ def report(results: list[dict], args) -> str:
     """The Markdown report of all measured sizes."""
     out = [
         "## Scale: library size against index, load, memory and recognition time\n",
-        f"Command: `nice -n 10 python tools/scale.py {' '.join(sys.argv[1:])}` "
-        f"({os.cpu_count()} logical CPUs shared with other work; OMP_NUM_THREADS="
+        "Commands: "
+        + "; ".join(sorted({f"`nice -n 10 python tools/scale.py {r['command']}`" for r in results}))
+        + f" ({os.cpu_count()} logical CPUs shared with other work; OMP_NUM_THREADS="
         f"{os.environ.get('OMP_NUM_THREADS', 'unset')}). Blobs of "
         f"{results[0]['faces'] if results else '?'} faces (meshrec.bench.blobs); medians over "
         "the touches measured (column `touches`).\n",
@@ -170,6 +171,14 @@ def report(results: list[dict], args) -> str:
     ]
     for r in sorted(results, key=lambda r: r["models"]):
         n, t = r["models"], r["touches"]
+        if not t:  # measured without touches (--touches 0)
+            out.append(
+                f"| {n} | {r['index_median_s']:.3f} | {r['load_s']:.3f} "
+                f"| {r['rss_library_mb']:.0f} | {r['rss_library_mb'] / n:.2f} | 0 "
+                "| - | - | - | - | - | - | - "
+                f"| - | {r.get('load_average', 0):.1f} |"
+            )
+            continue
         serial = statistics.median(x["serial_s"] for x in t) if t else float("nan")
         right = sum(x["serial_best"] == x["model"] for x in t)
         if t and "workers_s" in t[0]:
@@ -219,7 +228,13 @@ def plot(results: list[dict], path: Path, starts: int) -> None:
         ax.plot(n, med("workers_s"), "s-", label="meshrec, --workers")
     if rows and "baseline_s" in rows[0]["touches"][0]:
         ax.plot(n, med("baseline_s"), "^--", label=f"Open3D multi-start ICP x{starts}")
-    ax.plot(n, [r["load_s"] for r in rows], "d:", label="library load (warm cache)")
+    every = sorted(results, key=lambda r: r["models"])
+    ax.plot(
+        [r["models"] for r in every],
+        [r["load_s"] for r in every],
+        "d:",
+        label="library load (warm cache)",
+    )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("models in the library")
@@ -271,6 +286,7 @@ def main(argv=None) -> int:
         child = [sys.executable, __file__, "--measure", str(n), *(argv or sys.argv[1:])]
         proc = subprocess.run(child, stdout=subprocess.PIPE, text=True, check=True)
         done[str(n)] = json.loads(proc.stdout.strip().splitlines()[-1])
+        done[str(n)]["command"] = " ".join(argv or sys.argv[1:])
         store.parent.mkdir(parents=True, exist_ok=True)
         store.write_text(json.dumps(done, indent=1))
     results = list(done.values())
