@@ -234,8 +234,22 @@ def plot(results: list[dict], path: Path, starts: int) -> None:
     ax.plot(n, med("serial_s"), "o-", label="meshrec, serial")
     if rows and "workers_s" in rows[0]["touches"][0]:
         ax.plot(n, med("workers_s"), "s-", label="meshrec, --workers")
+    cpu = [r for r in rows if "serial_cpu_s" in r["touches"][0]]
+    if cpu:
+        ax.plot(
+            [r["models"] for r in cpu],
+            [statistics.median(x["serial_cpu_s"] for x in r["touches"]) for r in cpu],
+            "o",
+            mfc="none",
+            label="meshrec, serial: CPU time",
+        )
     if rows and "baseline_s" in rows[0]["touches"][0]:
-        ax.plot(n, med("baseline_s"), "^--", label=f"Open3D multi-start ICP x{starts}")
+        ax.plot(
+            n,
+            med("baseline_s"),
+            "^--",
+            label=f"Open3D multi-start ICP x{starts} (per model x models)",
+        )
     every = sorted(results, key=lambda r: r["models"])
     ax.plot(
         [r["models"] for r in every],
