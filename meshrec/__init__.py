@@ -30,6 +30,7 @@ _WHERE = {
     "RoughFitWarning": "meshrec.contact.geometry",
     "estimate_local_geometry": "meshrec.contact.geometry",
     "find_common_point": "meshrec.contact.geometry",
+    "ProbeOffsetWarning": "meshrec.contact.probe",
     "TouchData": "meshrec.io.touch",
     "Truth": "meshrec.io.truth",
     "read_truth": "meshrec.io.truth",
@@ -40,6 +41,8 @@ _WHERE = {
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
     "TouchAdvice": "meshrec.recognition.advice",
+    "PoseFreedom": "meshrec.recognition.freedom",
+    "pose_freedom": "meshrec.recognition.freedom",
     "next_touch": "meshrec.recognition.advice",
     "JointFit": "meshrec.recognition.joint",
     "register_touches": "meshrec.recognition.joint",
@@ -85,12 +88,14 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
         estimate_local_geometry,
         find_common_point,
     )
+    from meshrec.contact.probe import ProbeOffsetWarning
     from meshrec.io.touch import TouchData
     from meshrec.io.truth import Truth, read_truth, write_truth
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
     from meshrec.recognition.advice import TouchAdvice, next_touch
+    from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
@@ -123,7 +128,9 @@ __all__ = [
     "ModelLibrary",
     "ModelScore",
     "PhiBrackets",
+    "PoseFreedom",
     "PoseHypothesis",
+    "ProbeOffsetWarning",
     "Recognition",
     "RefinedSearch",
     "Registration",
@@ -150,6 +157,7 @@ __all__ = [
     "lookup_candidates",
     "next_touch",
     "phi_brackets",
+    "pose_freedom",
     "pose_hypotheses",
     "read_truth",
     "recognize",

@@ -159,15 +159,27 @@ POSE_DUPLICATE_ANGLE_DEG = 1.0
 #: The default local-search method: "lm" (least squares on charts) or "steepest" (the paper's).
 SEARCH_METHOD = "lm"
 
-# --- model index: the per-vertex curvature table (Section 2.1) -----------------------------
-#: Radius of libigl's curvature ball as a fraction of sqrt(surface area) of the model, so
-#: that curvature is measured at a fixed fraction of the model's size (the touch curves are
-#: SIM_LENGTH_FRACTION of it long), whatever the mesh resolution.
-CURVATURE_SCALE_FRACTION = 0.02
-#: Smallest curvature ball radius, in mean edge lengths (fewer fails on coarse meshes).
-CURVATURE_MIN_RADIUS = 2
-#: Largest curvature ball radius, in mean edge lengths (the cost grows with its square).
-CURVATURE_MAX_RADIUS = 8
+# --- model index: the curvature table at sites on the smooth surface (Section 2.1, issue 13)
+#: Radius of the neighbourhood the curvature at a site is fitted over, as a fraction of
+#: sqrt(surface area) of the model (the touch curves are SIM_LENGTH_FRACTION of it long,
+#: so this is about 0.36 of their half-length), whatever the mesh resolution.
+CURVATURE_SCALE_FRACTION = 0.04
+#: Distance asked between curvature sites (Poisson-disk sampling of the surface), as a
+#: fraction of sqrt(surface area): about 4,000-5,000 sites per model (the sampling keeps
+#: about 0.3 / spacing^2 per unit area), 0.4-0.6 s to build on a small primitive.
+SITE_SPACING_FRACTION = 0.008
+#: Radius of the neighbourhood whose (K, H) make a site's range (what a touch straddling a
+#: change of curvature may report), as a fraction of sqrt(surface area): about half the
+#: touch curves' half-length.
+SITE_RANGE_FRACTION = 0.05
+#: Adjacent faces whose normals differ by more than this (degrees) meet at a sharp edge:
+#: normals are not blended across it, curvature is fitted on each side separately, and
+#: sites along it are crease sites. Above the 22.5 degrees between the faces of an
+#: 80-face icosphere, below the 90 degrees of a box or a cylinder's rim.
+SITE_CREASE_ANGLE_DEG = 40.0
+#: A touch crosses a sharp edge (a warning) when at least this many of its points, placed
+#: by the best pose, lie on each of two or more smooth patches of the model.
+EDGE_MIN_POINTS = 3
 #: Adjacent vertex normals further apart than this (degrees) mark a crease: no smooth
 #: surface is implied across that edge, and the distance there is to the flat faces.
 SMOOTH_MAX_NORMAL_ANGLE_DEG = 25.0
@@ -339,6 +351,40 @@ RECOGNISE_P_VALUE = 0.01
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
 
+# --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
+#: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian
+#: of the point-to-surface residuals along it is below this fraction of the largest (rows
+#: [n, (x - c) / L x n], L the points' RMS spread). Measured with the default simulated
+#: touches (3 seeds each): a face of a box and the side of a fine cylinder give 1e-12 and
+#: 1e-6, the bundled sphere 6e-5 to 1.4e-4 (three turns about its centre, truly free);
+#: the most nearly free motion of the bundled ellipsoid 1.4e-3 to 9e-3, of the paper's
+#: monkey saddle 9e-3 to 3e-2. A 32-section trimesh cylinder's facets pin the turn about
+#: its axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
+POSE_FREE_RATIO = 5e-4
+#: A free twist counts as a turn when its rotational part is at least this (unit twists,
+#: rotation scaled by L); the rest are slides.
+POSE_TURN_FRACTION = 0.1
+#: A data point whose surface normal turns by more than this many degrees when it moves
+#: by POSE_EDGE_STEP times the points' spread along a tangent lies at a crease (a flat
+#: touch reaching a box's edge within the noise): the pose-freedom test leaves it out, as
+#: its constraint is one-sided. Above the facet angles of the bundled curved models.
+POSE_EDGE_DEG = 20.0
+#: ... the step of that probe, as a fraction of the points' RMS spread.
+POSE_EDGE_STEP = 0.02
+#: A free motion of the pose is a symmetry of the model (a turn about a body of
+#: revolution's axis, about a sphere's centre: not an ambiguity of the pose) when the
+#: model's surface points (at most SYMMETRY_POINTS vertices and face centres), slid by
+#: SYMMETRY_SLIDE x the model's bounding-box diagonal or turned by SYMMETRY_TURN_RAD,
+#: land on its surface within an RMS of max(SYMMETRY_NOISE x the touches' noise,
+#: SYMMETRY_TOL x the diagonal). The turn is small enough that an axis estimated from
+#: noisy data (off by a few noise levels) still passes, large enough that a box turned
+#: about a face normal moves its corners by about 0.1 x its size.
+SYMMETRY_POINTS = 3000
+SYMMETRY_SLIDE = 0.1
+SYMMETRY_TURN_RAD = 0.2
+SYMMETRY_NOISE = 3.0
+SYMMETRY_TOL = 2e-3
+
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the
 #: least joint RMS at their starting pose first (each single-touch registration gives up
@@ -356,6 +402,28 @@ JOINT_KEEP_RATIO = 1.5
 #: touches: every further touch can only lower its likelihood (the explicit, order-free
 #: pruning step after the per-model work; e^-14 ~ 1e-6, far below any plausible set).
 JOINT_PRUNE_LOG_RATIO = -14.0
+
+#: The recognition's cascade (meshrec.recognition.cascade): with one touch, every model's
+#: first stages (lookup, phi, screening) run first, and the local searches only on the
+#: models whose best conceivable fit is within JOINT_PRUNE_LOG_RATIO of the leaders'.
+#: False: the full search on every model (the reference the cascade is tested against).
+CASCADE = True
+#: A model's rms is taken to be at least its least screened error over this. Measured on
+#: 135 (touch, model) pairs not rejected by the lookup (10 touches on a generated library
+#: of 20 shapes, bench.shape_set(20, seed=0); 12 each on the paper surfaces and objects,
+#: seeds 5-7): the least screened error over the full search's rms was at most 1.02 on the
+#: 38 pairs whose full-search log-likelihood was within JOINT_PRUNE_LOG_RATIO of the
+#: leader's (at most 2.39 on the far ones, which lose either way); 2 is a margin of 2.
+CASCADE_SCREEN_GAIN = 2.0
+#: The leaders' rms is taken to be at most the least screened error times this (the same
+#: pairs: the leader's rms over the least screened error was at most 1.82, median 1.29;
+#: the screening's error is a mean on the phi subsample, the rms is at least the mean).
+#: With these two gains the rule pruned 59 of the 135 pairs, none of the 38 close ones.
+CASCADE_LEADER_GAIN = 2.0
+#: Rigid-refinement steps on all the points for a pruned model's reported pose (as the
+#: screening's SCREEN_ITERATIONS): its error is an upper bound either way, and the full
+#: refinement of a far-off fit was a third of a pruned model's time.
+CASCADE_PRUNED_ITERATIONS = 3
 #: Local searches of a further touch registered alone (the first has LOCAL_SEARCHES): its
 #: poses only seed the joint refinement, where the other touches pin the pose down. Half,
 #: for time (three touches cost about twice one: reports/touches.md); not tuned further.
@@ -474,6 +542,16 @@ PAIR_REFINE_SEEDS = 32
 #: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
 PAIR_SEARCH_GAP = 3.0
 
+# --- ball-tipped probes (meshrec.contact.probe, meshrec.recognition.probing) ---------------
+#: A touch recognised without a probe radius is tested for an undeclared ball tip: the
+#: data are refined onto the best model's surface offset by R for R up to this fraction of
+#: the touch's size (half its largest extent from the centroid; and of the model's size).
+PROBE_OFFSET_MAX_FRACTION = 0.5
+#: ... and a ProbeOffsetWarning is raised when the best R improves the fit by more than
+#: this chi-squared value (n (rms0^2 - rms^2) / noise^2, one added parameter) ...
+PROBE_OFFSET_CHI2 = 25.0
+#: ... and R is more than this many noise deviations.
+PROBE_OFFSET_MIN_NOISE = 3.0
 # --------------------------------------------------------------------------- scale
 #: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
 #: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit

@@ -119,7 +119,12 @@ def _boundary_vertices(mesh):
 
 
 def test_no_other_files():
-    found = sorted(p.relative_to(MODELS).as_posix() for p in MODELS.rglob("*.stl"))
+    # parts/ and primitives/ are checked by test_parts_models.py
+    found = sorted(
+        p.relative_to(MODELS).as_posix()
+        for folder in ("surfaces", "objects")
+        for p in (MODELS / folder).rglob("*.stl")
+    )
     assert found == sorted(ALL)
 
 

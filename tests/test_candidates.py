@@ -1,8 +1,8 @@
 """Tests for meshrec.registration.candidates and ModelIndex.lookup: the candidate contacts.
 
-On a sphere of radius r every vertex has K = 1/r^2 and H = 1/r (outward normals), on a
-cylinder's side K = 0 and H = 1/(2r): a lookup with those values must find every such
-vertex, and one with other values none. The lookup itself is compared with a brute-force
+On a sphere of radius r every curvature site has K = 1/r^2 and H = 1/r (outward normals),
+on a cylinder's side K = 0 and H = 1/(2r): a lookup with those values must find every such
+site, and one with other values none. The lookup itself is compared with a brute-force
 scan of the table, the spreading with brute-force distances, and the tolerance window with
 touches simulated on surfaces of known curvature.
 """
@@ -39,35 +39,36 @@ def meshes(tmp_path_factory):
 
 
 def _brute(model, K, H, tol_K, tol_H):
-    """Every valid vertex of the table within the box: a scan of all of them."""
+    """Every valid site whose (K, H) range meets the box: a scan of all of them."""
+    t = model.curvature
     keep = [
         v
-        for v in range(len(model.mesh.vertices))
-        if model.curvature.valid[v]
-        and abs(model.curvature.K[v] - K) <= tol_K
-        and abs(model.curvature.H[v] - H) <= tol_H
+        for v in range(len(t.points))
+        if t.valid[v]
+        and t.K_range[v, 0] - tol_K <= K <= t.K_range[v, 1] + tol_K
+        and t.H_range[v, 0] - tol_H <= H <= t.H_range[v, 1] + tol_H
     ]
     return np.array(keep, dtype=np.int64)
 
 
 def _check_spread(model, cand, spacing, limit):
-    chosen = model.mesh.vertices[cand.vertices]
-    assert len(cand.vertices) <= limit
-    assert len(np.unique(cand.vertices)) == len(cand.vertices)
+    chosen = model.curvature.points[cand.sites]
+    assert len(cand.sites) <= limit
+    assert len(np.unique(cand.sites)) == len(cand.sites)
     d = np.linalg.norm(chosen[:, None] - chosen[None], axis=2) + np.eye(len(chosen)) * 1e9
     assert d.min() >= spacing
 
 
 # ----------------------------------------------------------------------------- sphere
-def test_sphere_every_valid_vertex_matches(meshes):
+def test_sphere_every_valid_site_matches(meshes):
     model = meshes.ball
     k = 1.0 / RADIUS
     cand = find_candidates(model, k, k, HALF_LENGTH, FIT_RMS)
     assert isinstance(cand, CandidateSet)
-    assert model.curvature.valid.sum() == len(model.mesh.vertices)  # a clean closed mesh: all valid
-    assert cand.raw_hits == len(model.mesh.vertices)
+    assert model.curvature.valid.all()  # a clean closed mesh: all valid
+    assert cand.raw_hits == len(model.curvature.points)
     # 64 candidates at least a quarter of the half-length apart (the sphere has room).
-    assert len(cand.vertices) == defaults.MAX_CANDIDATES
+    assert len(cand.sites) == defaults.MAX_CANDIDATES
     _check_spread(model, cand, defaults.CANDIDATE_SPACING_FRACTION * HALF_LENGTH, 64)
     # The window is the one curvature_tolerance gives for these inputs.
     assert (cand.tol_K, cand.tol_H) == curvature_tolerance(k, k, HALF_LENGTH, FIT_RMS)
@@ -81,22 +82,22 @@ def test_sphere_every_valid_vertex_matches(meshes):
 def test_sphere_other_curvatures_match_nothing(meshes, k1, k2):
     cand = find_candidates(meshes.ball, k1, k2, HALF_LENGTH, FIT_RMS)
     assert cand.raw_hits == 0
-    assert cand.vertices.shape == (0,)
-    assert cand.vertices.dtype == np.int64
+    assert cand.sites.shape == (0,)
+    assert cand.sites.dtype == np.int64
 
 
 def test_max_candidates_and_the_first_candidate(meshes):
     model = meshes.ball
     k = 1.0 / RADIUS
     cand = find_candidates(model, k, k, HALF_LENGTH, FIT_RMS, max_candidates=5)
-    assert len(cand.vertices) == 5
+    assert len(cand.sites) == 5
     # The first is the hit closest to (K, H) in units of the tolerances: brute force.
     K, H = k * k, k
     mismatch = (
         np.abs(model.curvature.K - K) / cand.tol_K + np.abs(model.curvature.H - H) / cand.tol_H
     )
-    assert cand.vertices[0] == np.argmin(mismatch)
-    assert len(find_candidates(model, k, k, HALF_LENGTH, FIT_RMS, max_candidates=0).vertices) == 0
+    assert cand.sites[0] == np.argmin(mismatch)
+    assert len(find_candidates(model, k, k, HALF_LENGTH, FIT_RMS, max_candidates=0).sites) == 0
 
 
 # ----------------------------------------------------------------------------- cylinder
@@ -105,9 +106,9 @@ def test_cylinder_side_matches_k_zero_h_half_over_r(meshes):
     cand = find_candidates(model, 1.0 / RADIUS, 0.0, HALF_LENGTH, FIT_RMS)
     hits = _brute(model, 0.0, 0.5 / RADIUS, cand.tol_K, cand.tol_H)
     assert cand.raw_hits == len(hits)
-    assert np.isin(cand.vertices, hits).all()
-    # Every side vertex away from the open ends (where the curvature ball is cut) matches.
-    z = model.mesh.vertices[:, 2]
+    assert np.isin(cand.sites, hits).all()
+    # Every side site away from the open ends (where the curvature fit is cut) matches.
+    z = model.curvature.points[:, 2]
     middle = np.flatnonzero(np.abs(z) < 2.0)
     assert np.isin(middle, hits).all()
     _check_spread(model, cand, defaults.CANDIDATE_SPACING_FRACTION * HALF_LENGTH, 64)
@@ -119,16 +120,16 @@ def test_cylinder_side_matches_k_zero_h_half_over_r(meshes):
 # ----------------------------------------------------------------------------- lookup
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(
-    vertex=st.integers(min_value=0, max_value=10**6),
+    site=st.integers(min_value=0, max_value=10**6),
     dK=st.floats(-0.2, 0.2),
     dH=st.floats(-0.2, 0.2),
     tol_K=st.one_of(st.floats(0.0, 0.3), st.just(np.inf)),
     tol_H=st.one_of(st.floats(0.0, 0.3), st.just(np.inf)),
 )
-def test_lookup_matches_a_brute_force_scan(meshes, vertex, dK, dH, tol_K, tol_H):
+def test_lookup_matches_a_brute_force_scan(meshes, site, dK, dH, tol_K, tol_H):
     # Boxes around the cylinder's table entries (whose K and H spread near the open ends).
     model = meshes.can
-    v = vertex % len(model.mesh.vertices)
+    v = site % len(model.curvature.points)
     K, H = float(model.curvature.K[v]) + dK, float(model.curvature.H[v]) + dH
     got = model.curvature.lookup(K, H, tol_K, tol_H)
     assert got.dtype == np.int64

@@ -35,14 +35,27 @@ SCHEMA = {
         "touch",
         "touches",
         "ranking",
+        "pose_freedom",
     ],
     "additionalProperties": False,
     "properties": {
         "verdict": {"enum": ["recognised", "ambiguous", "unknown"]},
+        "pose_freedom": {
+            "type": ["object", "null"],
+            "required": ["free", "slides", "turns", "names", "description"],
+            "properties": {
+                "free": {"type": "integer", "minimum": 0, "maximum": 6},
+                "slides": {"type": "integer", "minimum": 0, "maximum": 3},
+                "turns": {"type": "integer", "minimum": 0, "maximum": 3},
+                "names": {"type": "array", "items": {"enum": ["slide", "turn"]}},
+                "description": {"type": "string", "minLength": 1},
+            },
+        },
         "plausible": {"type": "array", "items": {"type": "string"}},
         "noise": {"type": "number", "exclusiveMinimum": 0},
         "reason": {"type": "string", "minLength": 1},
         "warnings": {"type": "array", "items": {"type": "string"}},
+        "probe_radius": {"type": "number", "minimum": 0},
         "touch": {
             "type": "object",
             "required": ["file", "points", "curves", "contact", "normal", "K", "H"],

@@ -45,11 +45,13 @@ def test_models_lists_the_bundled_sets(env, tmp_path):
     proc = _run(["models", "--json"], env, tmp_path)
     assert proc.returncode == 0, proc.stderr
     sets = {s["name"]: s for s in json.loads(proc.stdout)["sets"]}
-    assert set(sets) == {"objects", "surfaces"}
+    assert set(sets) == {"objects", "parts", "primitives", "surfaces"}
     for name, s in sets.items():
         assert sorted(s["models"]) == sorted(p.stem for p in (MODELS / name).glob("*.stl"))
     assert sets["objects"]["units"] == "mm"  # millimetres (models/README.md)
     assert sets["surfaces"]["units"] is None  # unitless
+    assert sets["parts"]["units"] == "mm"
+    assert sets["primitives"]["units"] is None
     text = _run(["models"], env, tmp_path)
     assert text.returncode == 0
     assert any(ln.split()[:2] == ["objects", "mm"] for ln in text.stdout.splitlines())

@@ -182,7 +182,9 @@ def test_a_changed_mesh_or_parameter_is_rebuilt(tmp_path):
     assert len(lib["ball"].mesh.vertices) == len(
         trimesh.creation.icosphere(subdivisions=4).vertices
     )
-    other = ModelLibrary.from_folder(models, params=IndexParams(min_radius=3), cache_dir=cache)
+    other = ModelLibrary.from_folder(
+        models, params=IndexParams(curvature_fraction=0.05), cache_dir=cache
+    )
     assert not any(m.from_cache for m in other)
     assert len(list(cache.glob("*.npz"))) == 3 + 1 + 3  # every version kept side by side
 

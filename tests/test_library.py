@@ -72,10 +72,13 @@ def test_from_folder(folder, tmp_path, recwarn):
         "sub",
     ]
     forced = ModelLibrary.from_folder(
-        folder, params=IndexParams(min_radius=3), cache_dir=tmp_path / "cache", force=True
+        folder,
+        params=IndexParams(curvature_fraction=0.05),
+        cache_dir=tmp_path / "cache",
+        force=True,
     )
     assert not any(m.from_cache for m in forced)
-    assert all(m.params.min_radius == 3 for m in forced)
+    assert all(m.params.curvature_fraction == 0.05 for m in forced)
 
 
 def test_bad_and_duplicate_files_are_skipped_with_warnings(folder, tmp_path):

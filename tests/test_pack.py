@@ -130,7 +130,7 @@ def test_pack_key_depends_on_every_input(folder):
     assert key == pack.pack_key(files, digests, IndexParams())
     assert key != pack.pack_key(files, (digests[1], digests[0], digests[2]), IndexParams())
     assert key != pack.pack_key(files[::-1], digests[::-1], IndexParams())
-    assert key != pack.pack_key(files, digests, IndexParams(min_radius=1))
+    assert key != pack.pack_key(files, digests, IndexParams(curvature_fraction=0.05))
 
 
 def test_file_digests_of_an_unreadable_file_is_none(folder):

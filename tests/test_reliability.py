@@ -205,11 +205,11 @@ def _same_models(a: ModelLibrary, b: ModelLibrary) -> None:
         ):
             a, b = getattr(getattr(x, part), name), getattr(getattr(y, part), name)
             assert np.array_equal(a, b, equal_nan=True), name
-        assert (x.mesh.closed, x.mesh.scale, x.mesh.avg_edge, x.curvature.radius_edges) == (
+        assert (x.mesh.closed, x.mesh.scale, x.mesh.avg_edge, x.curvature.spacing) == (
             y.mesh.closed,
             y.mesh.scale,
             y.mesh.avg_edge,
-            y.curvature.radius_edges,
+            y.curvature.spacing,
         )
 
 

@@ -15,7 +15,7 @@ import trimesh
 from meshrec import defaults, simulate_touch
 from meshrec.app.cli import main
 from meshrec.model.curvature import CurvatureTable
-from meshrec.model.index import ModelIndex
+from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MeshData
 from meshrec.model.resolution import (
     Resolution,
@@ -23,6 +23,7 @@ from meshrec.model.resolution import (
     coarse_message,
     mesh_resolution,
 )
+from meshrec.model.surface import AabbSurface
 from meshrec.recognition.recognize import recognize
 
 
@@ -75,11 +76,19 @@ def test_default_curve_length_and_vertices_per_curve():
     assert longer.vertices_per_curve == pytest.approx(2 * res.vertices_per_curve)
 
 
+def _table(mesh):
+    spacing, radius, range_radius = IndexParams().lengths(mesh.scale)
+    surface = AabbSurface.from_mesh(mesh, defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG)
+    return CurvatureTable.from_mesh(
+        mesh, surface, spacing=spacing, curvature_radius=radius, range_radius=range_radius
+    )
+
+
 def test_curvature_range_from_the_table():
     mesh = _mesh(trimesh.creation.icosphere(4, radius=2.0))
-    res = mesh_resolution(mesh, curvature=CurvatureTable.from_mesh(mesh, 3))
-    assert res.curvature_min == pytest.approx(0.5, rel=0.05)
-    assert res.curvature_max == pytest.approx(0.5, rel=0.05)
+    res = mesh_resolution(mesh, curvature=_table(mesh))
+    assert res.curvature_min == pytest.approx(0.5, rel=0.08)
+    assert res.curvature_max == pytest.approx(0.5, rel=0.08)
 
 
 def test_cad_cylinder_is_flagged_and_a_fine_sphere_is_not():
@@ -120,8 +129,8 @@ def test_raises():
         with pytest.raises(ValueError, match="curve_length must be a finite number > 0"):
             mesh_resolution(mesh, curve_length=bad)
     other = _mesh(trimesh.creation.icosphere(3))
-    with pytest.raises(ValueError, match="curvature must have one entry per mesh vertex"):
-        mesh_resolution(mesh, curvature=CurvatureTable.from_mesh(other, 2))
+    with pytest.raises(ValueError, match="curvature must have one patch label per mesh face"):
+        mesh_resolution(mesh, curvature=_table(other))
     fine = mesh_resolution(_mesh(trimesh.creation.icosphere(5)))
     with pytest.raises(ValueError, match="resolution must be too coarse"):
         coarse_message("ico", fine)

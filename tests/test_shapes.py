@@ -28,6 +28,25 @@ def test_capsule_volume_is_the_analytic_one():
     assert s.mesh.volume == pytest.approx(expected, rel=5e-3)
 
 
+def test_tipped_rod_volume_is_the_analytic_one_and_only_the_tip_varies():
+    a = bench.make_shape("tipped_rod", rng=1)
+    b = bench.make_shape("tipped_rod", rng=2)
+    r, side = a.params["radius"], a.params["side"]
+    for s in (a, b):
+        c = s.params["tip"] * r
+        # cylinder + hemisphere + half an ellipsoid of revolution (semi-axes r, r, c)
+        expected = np.pi * r**2 * side + 2.0 / 3.0 * np.pi * r**3 + 2.0 / 3.0 * np.pi * r**2 * c
+        assert s.mesh.is_watertight
+        assert s.mesh.volume == pytest.approx(expected, rel=5e-3)
+    assert (b.params["radius"], b.params["side"]) == (r, side)
+    assert a.params["tip"] != b.params["tip"]
+    assert "tipped_rod" in bench.EXTRA_FAMILIES
+    assert "tipped_rod" not in bench.SHAPE_FAMILIES
+    assert {s.family for s in bench.shape_set(3, seed=0, families=["tipped_rod"])} == {
+        "tipped_rod"
+    }
+
+
 def test_ellipsoid_axes_are_the_drawn_ones():
     s = bench.make_shape("ellipsoid", rng=5)
     axes = sorted(2.0 * np.array([s.params["a"], s.params["b"], s.params["c"]]))

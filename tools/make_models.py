@@ -38,6 +38,7 @@ from shapes.readme import measurement_table, readme_text
 
 _REPO = Path(__file__).resolve().parent.parent
 _DEFAULT_OUT = _REPO / "models"
+_PARTS_MARKER = "<!-- make_parts.py -->"
 
 
 def main(argv=None) -> int:
@@ -74,7 +75,12 @@ def main(argv=None) -> int:
         print(f"wrote {path}", flush=True)
     table = measurement_table(rows)
     print(table, end="")
-    (out / "README.md").write_text(readme_text(models, table), encoding="utf-8")
+    readme = out / "README.md"
+    # Keep the section that tools/make_parts.py writes after its marker line.
+    old = readme.read_text(encoding="utf-8") if readme.exists() else ""
+    tail = old[old.index(_PARTS_MARKER) :] if _PARTS_MARKER in old else ""
+    text = readme_text(models, table)
+    readme.write_text(text + ("\n" + tail if tail else ""), encoding="utf-8")
     return 0
 
 

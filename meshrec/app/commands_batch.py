@@ -6,20 +6,32 @@ import json
 import warnings
 from collections.abc import Callable
 
-from meshrec.app.inputs import STDIN, STDIN_NAME, error_message, read_touch, touch_in_units
+from meshrec.app.inputs import (
+    STDIN,
+    STDIN_NAME,
+    error_message,
+    read_touch,
+    touch_in_units,
+    with_probe_radius,
+)
 from meshrec.recognition.recognize import Recognition, recognize
 from meshrec.registration.register import touch_geometry
 
 __all__ = ["run_batch"]
 
 
-def _one(name, library, units, models_units, method, to_json, workers=None) -> dict:
+def _one(
+    name, library, units, models_units, method, to_json, probe_radius=None, workers=None
+) -> dict:
     """The JSON object of one touch file: the recognition, or an ``error``."""
     shown = STDIN_NAME if str(name) == STDIN else str(name)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            touch = touch_in_units(read_touch(name), units, models_units)
+            touch = read_touch(name)
+            if probe_radius is not None:
+                touch = with_probe_radius(touch, probe_radius)
+            touch = touch_in_units(touch, units, models_units)
             try:
                 geometry = touch_geometry(touch)
             except ValueError as exc:
@@ -41,6 +53,7 @@ def run_batch(
     units: str | None = None,
     models_units: str | None = None,
     method: str = "lm",
+    probe_radius: float | None = None,
     workers=None,
 ) -> int:
     """Recognise every touch file against ``library``; one JSON line each on ``out``.
@@ -62,6 +75,9 @@ def run_batch(
     units, models_units : str or None
         The touches' and the models' length units (see ``--units``).
     method : {"lm", "steepest"}
+    probe_radius : float, optional
+        The probe's ball-tip radius, in the touches' units (``--probe-radius``): it
+        replaces the touch files' own.
     workers : ModelWorkers or None
         Where the per-model work runs (see :func:`meshrec.recognition.recognize.recognize`).
 
@@ -72,7 +88,9 @@ def run_batch(
     """
     failed = 0
     for name in names:
-        doc = _one(name, library, units, models_units, method, to_json, workers)
+        doc = _one(
+            name, library, units, models_units, method, to_json, probe_radius, workers
+        )
         failed += "error" in doc
         out.write(json.dumps(doc) + "\n")
         out.flush()

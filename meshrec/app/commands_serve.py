@@ -4,8 +4,9 @@ answers recognitions with the JSON of the command line.
 Endpoints (JSON in, JSON out):
 
 * ``GET /health``: ``{"status": "ok", "models": [...], "version": ...}``.
-* ``POST /recognize``: one touch ``{"curves": [...], "contact"?: [...], "normal"?: [...]}``
-  or several touches of one object in one frame ``{"touches": [{"curves": ...}, ...]}``,
+* ``POST /recognize``: one touch ``{"curves": [...], "contact"?: [...], "normal"?: [...],
+  "probe_radius"?: r}`` (r: the probe's ball-tip radius, the touch's units) or several
+  touches of one object in one frame ``{"touches": [{"curves": ...}, ...]}``,
   either with an optional ``"units"``: the object ``meshrec recognize --json`` prints.
 * ``POST /next-touch``: the same, plus optional ``"approach": [x, y, z]`` and ``"seed"``:
   the object ``meshrec next-touch --json`` prints.
@@ -33,7 +34,7 @@ from meshrec.app.parallel import add_workers_args, model_workers
 __all__ = ["add_serve_parser", "create_app", "run_serve"]
 
 _UNIT_CHOICES = ("mm", "cm", "m", "in")  # meshrec.recognition.units.UNITS
-_TOUCH_KEYS = ("curves", "contact", "normal")
+_TOUCH_KEYS = ("curves", "contact", "normal", "probe_radius")
 
 
 def add_serve_parser(sub, models_arg) -> None:
@@ -53,6 +54,13 @@ def add_serve_parser(sub, models_arg) -> None:
         type=int,
         default=8765,
         help="port to listen on (default: 8765; 0 picks a free one, printed at start)",
+    )
+    s.add_argument(
+        "--probe-radius",
+        type=float,
+        default=None,
+        metavar="R",
+        help="the probe's ball-tip radius (touch units) for touches that give none",
     )
     add_workers_args(s)
 
@@ -175,12 +183,19 @@ class Service:
         library,
         models_units: str | None,
         method: str = defaults.SEARCH_METHOD,
+        probe_radius: float | None = None,
         workers=None,
     ):
+        from meshrec.contact.probe import check_probe_radius
+
         self.library = library
         self.models_units = models_units
         self.method = method
+        # the ball-tip radius of touches that give none (``--probe-radius``)
         self.workers = workers  # a ModelWorkers held for the service's life, or None
+        self.probe_radius = (
+            None if probe_radius is None else check_probe_radius(probe_radius, "--probe-radius")
+        )
         self.lock = threading.Lock()
 
     def answer(self, job: dict, advice: bool) -> dict:
@@ -215,6 +230,8 @@ class Service:
                 touches, geometries = [], []
                 for i, touch in enumerate(job["touches"]):
                     name = f"touches[{i}]" if several else "touch"
+                    if touch.probe_radius is None and self.probe_radius is not None:
+                        touch = inputs.with_probe_radius(touch, self.probe_radius)
                     touch = inputs.touch_in_units(touch, units, self.models_units)
                     try:
                         geometries.append(touch_geometry(touch))
@@ -382,7 +399,8 @@ def run_serve(args, err=None) -> int:
     ----------
     args : argparse.Namespace
         ``models``, ``model_units``, ``cache_dir``, ``host``, ``port``, ``workers``,
-        ``scheduler``.
+        ``scheduler`` and optionally ``probe_radius`` (the ball-tip radius of touches that
+        give none).
     err : text stream, optional
         Where the one start-up line goes (default: ``sys.stderr``).
 
@@ -396,12 +414,17 @@ def run_serve(args, err=None) -> int:
     Raises
     ------
     ValueError
-        If the service extra is not installed, the model folder cannot be read, or the
-        address cannot be bound.
+        If the service extra is not installed, the model folder cannot be read, the
+        address cannot be bound, or ``probe_radius`` is negative or not finite.
     """
     err = sys.stderr if err is None else err
     if not 0 <= args.port <= 65535:  # before the library is loaded
         raise ValueError(f"--port must be 0 to 65535, got {args.port}")
+    probe_radius = getattr(args, "probe_radius", None)
+    if probe_radius is not None:  # before the library is loaded, too
+        from meshrec.contact.probe import check_probe_radius
+
+        check_probe_radius(probe_radius, "--probe-radius")
     try:
         import starlette  # noqa: F401
         import uvicorn
@@ -423,7 +446,7 @@ def run_serve(args, err=None) -> int:
         raise
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
-    app = create_app(Service(library, units, workers=workers))
+    app = create_app(Service(library, units, probe_radius=probe_radius, workers=workers))
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
     server = uvicorn.Server(config)
     err.write(

@@ -85,6 +85,7 @@ def run_simulate(args, out) -> int:
         n_points=args.points,
         noise=args.noise,
         length=args.length,
+        probe_radius=args.probe_radius,
     )
     from meshrec.io.checks import one_line
 
@@ -93,6 +94,8 @@ def run_simulate(args, out) -> int:
     truth = f"truth in {one_line(args.truth)}" if args.truth else "no truth file (use --truth)"
     out.write(
         f"wrote {one_line(args.output)}: {len(sim.touch.curves)} curves x {args.points} "
-        f"points on {one_line(sim.model)}, true contact {c}; {truth}\n"
+        f"points on {one_line(sim.model)}, true contact {c}"
+        + (f", ball centres of a tip of radius {sim.probe_radius:g}" if sim.probe_radius else "")
+        + f"; {truth}\n"
     )
     return 0

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import sys
 import tempfile
 import warnings
@@ -144,6 +145,20 @@ def touch_in_units(touch: TouchData, units: str | None, models_units: str | None
     return convert_touch(touch, units, models_units)
 
 
+def with_probe_radius(touch: TouchData, radius: float) -> TouchData:
+    """The touch with its ``probe_radius`` replaced (``--probe-radius``).
+
+    Raises
+    ------
+    ValueError
+        If ``radius`` is negative or not finite (the message names ``--probe-radius``).
+    """
+    try:
+        return dataclasses.replace(touch, probe_radius=radius)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(str(exc).replace("probe_radius", "--probe-radius", 1)) from None
+
+
 def touch_and_geometry(args, folder: Path, models_units: str | None):
     """The touch named by ``args.touch_file`` with its hints, in the models' units, and
     its local geometry: bad data fail here, before any model is indexed.
@@ -166,6 +181,9 @@ def touch_and_geometry(args, folder: Path, models_units: str | None):
     contact, normal = getattr(args, "contact", None), getattr(args, "normal", None)
     if contact is not None or normal is not None:  # in the touch's units, like the file
         touch = touch.with_hints(contact=contact, normal=normal)
+    radius = getattr(args, "probe_radius", None)
+    if radius is not None:  # in the touch's units too; it replaces the file's own
+        touch = with_probe_radius(touch, radius)
     touch = touch_in_units(touch, units, models_units)
     try:
         geometry = touch_geometry(touch)

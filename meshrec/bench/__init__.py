@@ -12,9 +12,17 @@ from meshrec.bench.protocols import (
     paper_touch,
     run_trials,
 )
-from meshrec.bench.shapes import SHAPE_FAMILIES, Shape, make_shape, shape_set, write_shapes
+from meshrec.bench.shapes import (
+    EXTRA_FAMILIES,
+    SHAPE_FAMILIES,
+    Shape,
+    make_shape,
+    shape_set,
+    write_shapes,
+)
 
 __all__ = [
+    "EXTRA_FAMILIES",
     "OBJECT_SIDES",
     "SHAPE_FAMILIES",
     "Blob",

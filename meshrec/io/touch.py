@@ -4,8 +4,9 @@ Two file formats are accepted:
 
 * CSV with the header ``curve,x,y,z``: one row per point, ``curve`` an integer label.
   Points keep their file order within a curve; curves are ordered by label.
-* JSON ``{"curves": [[[x, y, z], ...], ...], "contact": [x, y, z], "normal": [x, y, z]}``
-  where ``contact`` and ``normal`` are optional.
+* JSON ``{"curves": [[[x, y, z], ...], ...], "contact": [x, y, z], "normal": [x, y, z],
+  "probe_radius": r}`` where ``contact``, ``normal`` and ``probe_radius`` (the radius of
+  the probe's ball tip, data units) are optional.
 """
 
 from __future__ import annotations
@@ -21,7 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from meshrec import defaults
-from meshrec.io.checks import check_curves, check_transform, check_vector, one_line
+from meshrec.io.checks import (
+    check_curves,
+    check_number,
+    check_transform,
+    check_vector,
+    one_line,
+)
 from meshrec.io.files import read_text, write_atomic
 
 __all__ = ["TouchData"]
@@ -44,25 +51,35 @@ class TouchData:
     normal : (3,) float, optional
         An approximate outward surface normal at the contact (for example minus the
         probe's approach direction). Without it both sides of the surface are tried.
+    source : str, optional
+        Where the touch came from (a file name), for messages.
+    probe_radius : float, optional
+        Radius of the probe's ball tip, data units, if known: the curves are then the
+        ball's centres, on the surface offset outwards by it (see
+        :mod:`meshrec.contact.probe`). None: not recorded (recognition assumes 0 unless
+        told otherwise).
 
     Raises
     ------
     TypeError
         If ``curves`` is not a sequence of arrays, a curve, ``contact`` or ``normal`` is
-        not real numbers (complex, bool, strings), or ``source`` is not a str.
+        not real numbers (complex, bool, strings), ``source`` is not a str, or
+        ``probe_radius`` is not a real number.
     ValueError
         If there are fewer than ``defaults.MIN_CURVES`` or more than
         ``defaults.MAX_CURVES`` curves, a curve is not (n, 3), has fewer than
         ``defaults.MIN_POINTS_PER_CURVE`` or more than ``defaults.MAX_POINTS_PER_CURVE``
         points or a non-finite value, all curves hold more than
         ``defaults.MAX_TOUCH_POINTS`` points, or ``contact`` / ``normal`` is not a finite
-        (3,) vector, or ``normal`` is zero (see :mod:`meshrec.io.checks`).
+        (3,) vector, ``normal`` is zero (see :mod:`meshrec.io.checks`), or
+        ``probe_radius`` is negative or not finite.
     """
 
     curves: tuple[np.ndarray, ...]
     contact: np.ndarray | None = None
     normal: np.ndarray | None = None
     source: str | None = field(default=None, compare=False)
+    probe_radius: float | None = None
 
     def __post_init__(self):
         curves = check_curves(self.curves, "curves")
@@ -75,6 +92,9 @@ class TouchData:
             object.__setattr__(self, "normal", check_vector(self.normal, "normal", unit=True))
         if self.source is not None and not isinstance(self.source, str):
             raise TypeError(f"source must be a str or None, got {type(self.source).__name__}")
+        if self.probe_radius is not None:
+            radius = check_number(self.probe_radius, "probe_radius", minimum=0.0)
+            object.__setattr__(self, "probe_radius", radius)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -99,6 +119,8 @@ class TouchData:
             extra += f", contact={np.round(self.contact, 6).tolist()}"
         if self.normal is not None:
             extra += f", normal={np.round(self.normal, 4).tolist()}"
+        if self.probe_radius is not None:
+            extra += f", probe_radius={self.probe_radius:g}"
         return f"TouchData({len(self.curves)} curves of [{sizes}] points{extra})"
 
     # ------------------------------------------------------------------ transforms
@@ -129,6 +151,7 @@ class TouchData:
             contact=None if self.contact is None else R @ self.contact + t,
             normal=None if self.normal is None else R @ self.normal,
             source=self.source,
+            probe_radius=self.probe_radius,
         )
 
     def with_hints(self, contact=None, normal=None) -> TouchData:
@@ -138,6 +161,7 @@ class TouchData:
             contact=self.contact if contact is None else contact,
             normal=self.normal if normal is None else normal,
             source=self.source,
+            probe_radius=self.probe_radius,
         )
 
     # ------------------------------------------------------------------ reading
@@ -242,7 +266,8 @@ class TouchData:
 
     @classmethod
     def from_json(cls, path) -> TouchData:
-        """Read a JSON touch file ``{"curves": [...], "contact"?: [...], "normal"?: [...]}``.
+        """Read a JSON touch file ``{"curves": [...], "contact"?: [...], "normal"?: [...],
+        "probe_radius"?: r}``.
 
         Parameters
         ----------
@@ -276,8 +301,8 @@ class TouchData:
     @classmethod
     def from_dict(cls, obj, source: str | None = None, label: str | None = None) -> TouchData:
         """A touch from a parsed JSON object ``{"curves": [...], "contact"?: [...],
-        "normal"?: [...]}``, checked as :meth:`from_json` checks a file's (it reads files
-        through this).
+        "normal"?: [...], "probe_radius"?: r}``, checked as :meth:`from_json` checks a
+        file's (it reads files through this).
 
         Parameters
         ----------
@@ -300,14 +325,15 @@ class TouchData:
             not a list of ``[x, y, z]`` lists of numbers (finite, and within the range of
             a float), there are more than ``defaults.MAX_CURVES`` curves or
             ``defaults.MAX_TOUCH_POINTS`` points, ``contact`` or ``normal`` is not three
-            numbers, or the content fails validation (the message starts with ``label``).
+            numbers, ``probe_radius`` is not a number (or is negative), or the content
+            fails validation (the message starts with ``label``).
         """
         if label is None:
             label = "touch" if source is None else f"touch {one_line(source)}"
         data = obj
         if not isinstance(data, dict) or "curves" not in data:
             raise ValueError(f"{label}: expected an object with a 'curves' list")
-        unknown = set(data) - {"curves", "contact", "normal"}
+        unknown = set(data) - {"curves", "contact", "normal", "probe_radius"}
         if unknown:
             raise ValueError(f"{label}: unknown keys {one_line(sorted(map(str, unknown)))}")
         if not isinstance(data["curves"], list):
@@ -335,12 +361,20 @@ class TouchData:
         for key in ("contact", "normal"):
             if data.get(key) is not None:
                 _check_json_vector(label, data[key], key)
+        radius = data.get("probe_radius")
+        if radius is not None and (
+            isinstance(radius, bool) or not isinstance(radius, (int, float))
+        ):
+            raise ValueError(
+                f"{label}: 'probe_radius' must be a number, got {_json_type(radius)}"
+            )
         try:
             return cls(
                 curves=data["curves"],
                 contact=data.get("contact"),
                 normal=data.get("normal"),
                 source=source,
+                probe_radius=radius,
             )
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{label}: {exc}") from None
@@ -379,7 +413,8 @@ class TouchData:
             raise ValueError(f"path must end in .csv or .json, got {one_line(path.name)!r}")
 
     def to_csv(self, path) -> None:
-        """Write the curves as CSV ``curve,x,y,z`` (contact and normal are not stored),
+        """Write the curves as CSV ``curve,x,y,z`` (contact, normal and probe radius are not
+        stored),
         atomically (:func:`meshrec.io.files.write_atomic`).
 
         Parameters
@@ -422,6 +457,8 @@ class TouchData:
             data["contact"] = self.contact.tolist()
         if self.normal is not None:
             data["normal"] = self.normal.tolist()
+        if self.probe_radius is not None:
+            data["probe_radius"] = self.probe_radius
         write_atomic(path, json.dumps(data))
 
 

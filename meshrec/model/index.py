@@ -4,7 +4,8 @@ A :class:`ModelIndex` is a small composition, one home per job:
 
 * :attr:`ModelIndex.mesh`, the cleaned mesh and its per-mesh data
   (:class:`meshrec.model.mesh.MeshData`);
-* :attr:`ModelIndex.curvature`, the per-vertex curvature table and its (K, H) lookup
+* :attr:`ModelIndex.curvature`, the curvature table at sites on the smooth surface and its
+  (K, H) lookup
   (:class:`meshrec.model.curvature.CurvatureTable`, the paper's Section 2.1);
 * :attr:`ModelIndex.surface`, distance, closest-point, normal and smooth-surface queries
   behind the small :class:`meshrec.model.surface.SurfaceQuery` interface (default
@@ -47,12 +48,21 @@ __all__ = ["IndexParams", "ModelIndex"]
 class IndexParams:
     """Parameters of the curvature table (part of the cache key).
 
+    Lengths are fractions of the model's size ``sqrt(surface area)``, so that a model is
+    described at the scale of the touch curves (``defaults.SIM_LENGTH_FRACTION`` of it),
+    whatever its triangles.
+
     Parameters
     ----------
     curvature_fraction : float
-        Curvature ball radius as a fraction of ``sqrt(surface area)``.
-    min_radius, max_radius : int
-        Bounds of the ball radius, in mean edge lengths.
+        Radius of the curvature fit at each site.
+    spacing_fraction : float
+        Distance between curvature sites.
+    range_fraction : float
+        Radius of the neighbourhood of each site's (K, H) range (0: no range).
+    sharp_angle_deg : float
+        Adjacent faces whose normals differ by more than this meet at a sharp edge (crease
+        sites, separate patches).
     crease_angle_deg : float
         Adjacent vertex normals further apart than this mark a crease, where the smooth
         distance does not bulge the faces (see
@@ -61,70 +71,63 @@ class IndexParams:
     Raises
     ------
     ValueError
-        If ``curvature_fraction`` is not a finite positive number, the radii are not
-        integers with ``1 <= min_radius <= max_radius``, or ``crease_angle_deg`` is not
-        in (0, 180].
+        If ``curvature_fraction`` or ``spacing_fraction`` is not a finite positive
+        number, ``range_fraction`` not a finite number >= 0, or an angle not in (0, 180].
     """
 
     curvature_fraction: float = defaults.CURVATURE_SCALE_FRACTION
-    min_radius: int = defaults.CURVATURE_MIN_RADIUS
-    max_radius: int = defaults.CURVATURE_MAX_RADIUS
+    spacing_fraction: float = defaults.SITE_SPACING_FRACTION
+    range_fraction: float = defaults.SITE_RANGE_FRACTION
+    sharp_angle_deg: float = defaults.SITE_CREASE_ANGLE_DEG
     crease_angle_deg: float = defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG
 
     def __post_init__(self) -> None:
-        f = self.curvature_fraction
-        if (
-            isinstance(f, bool)
-            or not isinstance(f, numbers.Real)
-            or not (math.isfinite(f) and f > 0)
-        ):
-            raise ValueError(f"curvature_fraction must be a finite number > 0, got {f!r}")
-        for name in ("min_radius", "max_radius"):
-            r = getattr(self, name)
-            if isinstance(r, bool) or not isinstance(r, numbers.Integral) or r < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {r!r}")
-        if self.max_radius < self.min_radius:
-            raise ValueError(
-                f"max_radius must be >= min_radius, got max_radius={self.max_radius!r} "
-                f"and min_radius={self.min_radius!r}"
-            )
-        a = self.crease_angle_deg
-        if (
-            isinstance(a, bool)
-            or not isinstance(a, numbers.Real)
-            or not (math.isfinite(a) and 0 < a <= 180)
-        ):
-            raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {a!r}")
-        object.__setattr__(self, "crease_angle_deg", float(a))
-        object.__setattr__(self, "curvature_fraction", float(f))
-        object.__setattr__(self, "min_radius", int(self.min_radius))
-        object.__setattr__(self, "max_radius", int(self.max_radius))
+        for name in ("curvature_fraction", "spacing_fraction", "range_fraction"):
+            f = getattr(self, name)
+            low_ok = (lambda v: v >= 0) if name == "range_fraction" else (lambda v: v > 0)
+            if (
+                isinstance(f, bool)
+                or not isinstance(f, numbers.Real)
+                or not (math.isfinite(f) and low_ok(f))
+            ):
+                bound = ">= 0" if name == "range_fraction" else "> 0"
+                raise ValueError(f"{name} must be a finite number {bound}, got {f!r}")
+            object.__setattr__(self, name, float(f))
+        for name in ("sharp_angle_deg", "crease_angle_deg"):
+            a = getattr(self, name)
+            if (
+                isinstance(a, bool)
+                or not isinstance(a, numbers.Real)
+                or not (math.isfinite(a) and 0 < a <= 180)
+            ):
+                raise ValueError(f"{name} must be in (0, 180] degrees, got {a!r}")
+            object.__setattr__(self, name, float(a))
 
-    def radius_edges(self, scale: float, avg_edge: float) -> int:
-        """The ball radius in mean edge lengths for a model of this size and resolution.
+    def lengths(self, scale: float) -> tuple[float, float, float]:
+        """The site spacing, curvature radius and range radius for a model of this size.
 
         Parameters
         ----------
         scale : float
             ``sqrt(surface area)`` of the model.
-        avg_edge : float
-            Mean edge length of the mesh.
 
         Returns
         -------
-        int
-            ``clip(round(curvature_fraction * scale / avg_edge), min_radius, max_radius)``.
+        spacing, curvature_radius, range_radius : float
+            Model units.
 
         Raises
         ------
         ValueError
-            If ``scale`` or ``avg_edge`` is not finite and positive.
+            If ``scale`` is not finite and positive.
         """
-        for name, value in (("scale", scale), ("avg_edge", avg_edge)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-        r = round(self.curvature_fraction * scale / avg_edge)
-        return int(min(max(r, self.min_radius), self.max_radius))
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"scale must be finite and > 0, got {scale!r}")
+        return (
+            self.spacing_fraction * scale,
+            self.curvature_fraction * scale,
+            self.range_fraction * scale,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +146,7 @@ class ModelIndex:
     mesh : MeshData
         The cleaned mesh with its normals, size and mean edge length.
     curvature : CurvatureTable
-        Principal curvatures at the vertices and the (K, H) lookup.
+        Principal curvatures at sites on the smooth surface and the (K, H) lookup.
     surface : SurfaceQuery
         Closest points, normals and the smooth surface (default :class:`AabbSurface`).
     build_seconds : float
@@ -161,7 +164,7 @@ class ModelIndex:
     TypeError
         If a part has the wrong type.
     ValueError
-        If the curvature table does not have one entry per mesh vertex.
+        If the curvature table does not have one patch label per mesh face.
     """
 
     name: str
@@ -185,17 +188,17 @@ class ModelIndex:
             value = getattr(self, name)
             if not isinstance(value, kind):
                 raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
-        n = len(self.mesh.vertices)
-        if len(self.curvature.k1) != n:
+        m = len(self.mesh.faces)
+        if len(self.curvature.face_patch) != m:
             raise ValueError(
-                f"curvature must have one entry per mesh vertex ({n}), "
-                f"got {len(self.curvature.k1)}"
+                f"curvature must have one patch label per mesh face ({m}), "
+                f"got {len(self.curvature.face_patch)}"
             )
 
     def __repr__(self) -> str:
         return (
             f"ModelIndex({self.name!r}, vertices={len(self.mesh.vertices)}, "
-            f"faces={len(self.mesh.faces)}, table={len(self.curvature.table_vertices)}, "
+            f"faces={len(self.mesh.faces)}, sites={len(self.curvature.table_sites)}, "
             f"closed={self.mesh.closed}, scale={self.mesh.scale:.6g}, "
             f"from_cache={self.from_cache})"
         )
@@ -288,11 +291,18 @@ class ModelIndex:
             vertices, faces = parse_mesh(data, p)
             data = None  # the bytes of a large STL are large: not kept through the build
             mesh = MeshData.from_arrays(vertices, faces)
-            say("curvature")
-            curvature = CurvatureTable.from_mesh(
-                mesh, params.radius_edges(mesh.scale, mesh.avg_edge)
-            )
             bulge = edge_bulges(mesh, params.crease_angle_deg)
+            surface = AabbSurface(mesh=mesh, edge_bulge=bulge)
+            say("curvature")
+            spacing, radius, range_radius = params.lengths(mesh.scale)
+            curvature = CurvatureTable.from_mesh(
+                mesh,
+                surface,
+                spacing=spacing,
+                curvature_radius=radius,
+                range_radius=range_radius,
+                crease_angle_deg=params.sharp_angle_deg,
+            )
             build_seconds = time.perf_counter() - t_build
             say("writing the cache")
             record = IndexRecord.from_parts(mesh, curvature, bulge, build_seconds)
@@ -304,7 +314,7 @@ class ModelIndex:
                 params=params,
                 mesh=mesh,
                 curvature=curvature,
-                surface=AabbSurface(mesh=mesh, edge_bulge=bulge),
+                surface=surface,
                 build_seconds=build_seconds,
             )
         object.__setattr__(index, "load_seconds", time.perf_counter() - t0)

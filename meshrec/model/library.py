@@ -223,7 +223,7 @@ class ModelLibrary:
                 f"no loadable mesh in {what}: " + "; ".join(f"{p.name}: {r}" for p, r in skipped)
             )
         unusable = [
-            f"model {m.name!r} ({str(m.path)!r}): no vertex has a usable curvature "
+            f"model {m.name!r} ({str(m.path)!r}): no surface site has a usable curvature "
             f"estimate ({len(m.mesh.faces)} faces: too coarse or degenerate), so no "
             "touch will ever match it"
             for m in models

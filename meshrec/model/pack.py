@@ -44,13 +44,20 @@ from meshrec.model.record import RECORD_VERSION, IndexRecord
 
 __all__ = ["PACK_FORMAT", "file_digests", "load_pack", "pack_dir", "pack_key", "write_pack"]
 
-#: Bumped when the layout of a pack changes.
-PACK_FORMAT = 1
+#: Bumped when the layout of a pack changes (2: the curvature sites, issue 13).
+PACK_FORMAT = 2
 _TOC = "toc.json"
-#: Per-vertex and per-face arrays of a record (concatenated over the models).
-_PER_VERTEX = ("vertices", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid")
-_PER_FACE = ("faces", "edge_bulge")
-_SCALARS = ("closed", "scale", "avg_edge", "radius_edges", "curvature_radius", "build_seconds")
+#: Per-vertex, per-face and per-site arrays of a record (concatenated over the models).
+_PER_VERTEX = ("vertices", "vertex_normals")
+_PER_FACE = ("faces", "edge_bulge", "face_patch")
+_PER_SITE = (
+    "points", "normals", "normals2", "k1", "k2", "dir1", "dir2", "valid",
+    "K_range", "H_range", "crease",
+)
+_SCALARS = (
+    "closed", "scale", "avg_edge", "spacing", "curvature_radius", "range_radius",
+    "build_seconds",
+)
 _CHUNK = 1 << 24
 
 
@@ -204,21 +211,23 @@ def write_pack(
         "skipped": [[str(p), r] for p, r in skipped],
         "arrays": {},
     }
-    nv = nf = 0
+    nv = nf = ns = 0
     for m, rec in zip(models, records, strict=True):
         entry = {"name": m.name, "path": str(m.path)}
         entry["vertices"] = [nv, nv + len(rec.vertices)]
         entry["faces"] = [nf, nf + len(rec.faces)]
+        entry["sites"] = [ns, ns + len(rec.points)]
         entry.update({name: getattr(rec, name) for name in _SCALARS})
         nv += len(rec.vertices)
         nf += len(rec.faces)
+        ns += len(rec.points)
         toc["models"].append(entry)
     tmp = final.parent / f".{final.name}.{os.getpid()}.tmp"
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
-        for name in _PER_VERTEX + _PER_FACE:
+        for name in _PER_VERTEX + _PER_FACE + _PER_SITE:
             a = np.concatenate([np.asarray(getattr(r, name)) for r in records])
             np.save(tmp / f"{name}.npy", a, allow_pickle=False)
             toc["arrays"][name] = {"dtype": a.dtype.str, "shape": list(a.shape), "crc32": _crc(a)}
@@ -314,7 +323,7 @@ def _read(folder: Path, key: str, params: IndexParams):
     if toc.get("format") != PACK_FORMAT or toc.get("key") != key:
         raise ValueError("its table of contents belongs to another key or format")
     arrays = {}
-    for name in _PER_VERTEX + _PER_FACE:
+    for name in _PER_VERTEX + _PER_FACE + _PER_SITE:
         info = toc["arrays"][name]
         a = np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False)
         if a.dtype.str != info["dtype"] or list(a.shape) != info["shape"]:
@@ -326,8 +335,10 @@ def _read(folder: Path, key: str, params: IndexParams):
     for entry in toc["models"]:
         v0, v1 = entry["vertices"]
         f0, f1 = entry["faces"]
+        s0, s1 = entry["sites"]
         parts = {name: arrays[name][v0:v1] for name in _PER_VERTEX}
         parts.update({name: arrays[name][f0:f1] for name in _PER_FACE})
+        parts.update({name: arrays[name][s0:s1] for name in _PER_SITE})
         record = IndexRecord(**parts, **{name: entry[name] for name in _SCALARS})
         models.append(ModelIndex.from_record(entry["path"], params, record, from_cache=True))
     skipped = tuple((Path(p), str(r)) for p, r in toc["skipped"])

@@ -22,13 +22,35 @@ from meshrec.model.surface import AabbSurface
 __all__ = ["RECORD_VERSION", "IndexRecord"]
 
 #: Part of the cache key: bumped when the record's arrays, or how they are computed,
-#: change (1: the record of the split index, same arrays as cache format 3).
-RECORD_VERSION = 1
+#: change (1: the record of the split index, same arrays as cache format 3; 2: the
+#: curvature table at sites on the smooth surface, issue 13).
+RECORD_VERSION = 2
 
-_ARRAYS = (
-    "vertices", "faces", "vertex_normals", "k1", "k2", "dir1", "dir2", "valid", "edge_bulge"
+_MESH = ("vertices", "faces", "vertex_normals", "edge_bulge")
+_SITES = (
+    "points",
+    "normals",
+    "normals2",
+    "k1",
+    "k2",
+    "dir1",
+    "dir2",
+    "valid",
+    "K_range",
+    "H_range",
+    "crease",
+    "face_patch",
 )
-_SCALARS = ("closed", "scale", "avg_edge", "radius_edges", "curvature_radius", "build_seconds")
+_ARRAYS = _MESH + _SITES
+_SCALARS = (
+    "closed",
+    "scale",
+    "avg_edge",
+    "spacing",
+    "curvature_radius",
+    "range_radius",
+    "build_seconds",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,14 +62,14 @@ class IndexRecord:
     vertices : (n, 3) float64
     faces : (m, 3) int64
     vertex_normals : (n, 3) float64
-    k1, k2 : (n,) float64
-    dir1, dir2 : (n, 3) float64
-    valid : (n,) bool
     edge_bulge : (m, 3) float64
+    points, normals, normals2, k1, k2, dir1, dir2, valid, K_range, H_range, crease
+        The curvature sites' arrays (see :class:`meshrec.model.curvature.CurvatureTable`),
+        ``s`` sites each.
+    face_patch : (m,) int64
     closed : bool
     scale, avg_edge : float
-    radius_edges : int
-    curvature_radius : float
+    spacing, curvature_radius, range_radius : float
     build_seconds : float
         Time the index took to build.
 
@@ -61,17 +83,25 @@ class IndexRecord:
     vertices: np.ndarray = field(repr=False)
     faces: np.ndarray = field(repr=False)
     vertex_normals: np.ndarray = field(repr=False)
+    edge_bulge: np.ndarray = field(repr=False)
+    points: np.ndarray = field(repr=False)
+    normals: np.ndarray = field(repr=False)
+    normals2: np.ndarray = field(repr=False)
     k1: np.ndarray = field(repr=False)
     k2: np.ndarray = field(repr=False)
     dir1: np.ndarray = field(repr=False)
     dir2: np.ndarray = field(repr=False)
     valid: np.ndarray = field(repr=False)
-    edge_bulge: np.ndarray = field(repr=False)
+    K_range: np.ndarray = field(repr=False)
+    H_range: np.ndarray = field(repr=False)
+    crease: np.ndarray = field(repr=False)
+    face_patch: np.ndarray = field(repr=False)
     closed: bool
     scale: float
     avg_edge: float
-    radius_edges: int
+    spacing: float
     curvature_radius: float
+    range_radius: float
     build_seconds: float
 
     def __post_init__(self) -> None:
@@ -90,16 +120,29 @@ class IndexRecord:
         put("vertices", V)
         put("faces", F)
         put("vertex_normals", readonly(self.vertex_normals, np.float64, (n, 3), "vertex_normals"))
-        for name in ("k1", "k2"):
-            put(name, readonly(getattr(self, name), np.float64, (n,), name))
-        for name in ("dir1", "dir2"):
-            put(name, readonly(getattr(self, name), np.float64, (n, 3), name))
-        put("valid", readonly(self.valid, bool, (n,), "valid"))
         put("edge_bulge", readonly(self.edge_bulge, np.float64, (len(F), 3), "edge_bulge"))
+        P = readonly(self.points, np.float64, (None, 3), "points")
+        put("points", P)
+        s = len(P)
+        for name in ("normals", "normals2", "dir1", "dir2"):
+            put(name, readonly(getattr(self, name), np.float64, (s, 3), name))
+        for name in ("k1", "k2"):
+            put(name, readonly(getattr(self, name), np.float64, (s,), name))
+        for name in ("K_range", "H_range"):
+            put(name, readonly(getattr(self, name), np.float64, (s, 2), name))
+        for name in ("valid", "crease"):
+            put(name, readonly(getattr(self, name), bool, (s,), name))
+        put("face_patch", readonly(self.face_patch, np.int64, (len(F),), "face_patch"))
         put("closed", bool(self.closed))
-        for name in ("scale", "avg_edge", "curvature_radius", "build_seconds"):
+        for name in (
+            "scale",
+            "avg_edge",
+            "spacing",
+            "curvature_radius",
+            "range_radius",
+            "build_seconds",
+        ):
             put(name, float(getattr(self, name)))
-        put("radius_edges", int(self.radius_edges))
 
     # ------------------------------------------------------------------ cache arrays
     @staticmethod
@@ -178,17 +221,14 @@ class IndexRecord:
             vertices=mesh.vertices,
             faces=mesh.faces,
             vertex_normals=mesh.vertex_normals,
-            k1=curvature.k1,
-            k2=curvature.k2,
-            dir1=curvature.dir1,
-            dir2=curvature.dir2,
-            valid=curvature.valid,
             edge_bulge=edge_bulge,
+            **{name: getattr(curvature, name) for name in _SITES},
             closed=mesh.closed,
             scale=mesh.scale,
             avg_edge=mesh.avg_edge,
-            radius_edges=curvature.radius_edges,
+            spacing=curvature.spacing,
             curvature_radius=curvature.curvature_radius,
+            range_radius=curvature.range_radius,
             build_seconds=build_seconds,
         )
 
@@ -210,13 +250,10 @@ class IndexRecord:
             avg_edge=self.avg_edge,
         )
         curvature = CurvatureTable(
-            k1=self.k1,
-            k2=self.k2,
-            dir1=self.dir1,
-            dir2=self.dir2,
-            valid=self.valid,
-            radius_edges=self.radius_edges,
+            **{name: getattr(self, name) for name in _SITES},
+            spacing=self.spacing,
             curvature_radius=self.curvature_radius,
+            range_radius=self.range_radius,
             scale=self.scale,
         )
         return mesh, curvature, AabbSurface(mesh=mesh, edge_bulge=self.edge_bulge)
@@ -224,5 +261,5 @@ class IndexRecord:
     def __repr__(self) -> str:
         return (
             f"IndexRecord(vertices={len(self.vertices)}, faces={len(self.faces)}, "
-            f"radius_edges={self.radius_edges}, build_seconds={self.build_seconds:.3g})"
+            f"sites={len(self.points)}, build_seconds={self.build_seconds:.3g})"
         )

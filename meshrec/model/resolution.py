@@ -90,7 +90,7 @@ def mesh_resolution(
         The expected touch curve length, model units; ``None``:
         ``defaults.SIM_LENGTH_FRACTION * mesh.scale`` (``scale = sqrt(area)``).
     curvature : CurvatureTable or None
-        The mesh's curvature table (one entry per vertex), for the curvature range;
+        The mesh's curvature table (one patch label per face), for the curvature range;
         ``None``: the range is NaN.
 
     Returns
@@ -108,7 +108,7 @@ def mesh_resolution(
         If ``mesh`` is not a MeshData, or ``curvature`` neither a CurvatureTable nor None.
     ValueError
         If ``curve_length`` is not a finite number > 0, or ``curvature`` does not have
-        one entry per mesh vertex.
+        one patch label per mesh face.
     """
     if not isinstance(mesh, MeshData):
         raise TypeError(f"mesh must be a MeshData, got {type(mesh).__name__}")
@@ -126,9 +126,10 @@ def mesh_resolution(
         raise ValueError(f"curve_length must be a finite number > 0, got {curve_length!r}")
     curve_length = float(curve_length)
     V, F, N = mesh.vertices, mesh.faces, mesh.vertex_normals
-    if curvature is not None and len(curvature.k1) != len(V):
+    if curvature is not None and len(curvature.face_patch) != len(F):
         raise ValueError(
-            f"curvature must have one entry per mesh vertex ({len(V)}), got {len(curvature.k1)}"
+            f"curvature must have one patch label per mesh face ({len(F)}), "
+            f"got {len(curvature.face_patch)}"
         )
 
     E = igl.edges(F)
@@ -157,8 +158,8 @@ def mesh_resolution(
     sliver_fraction = float(area[sliver].sum()) / total if total > 0 else 0.0
 
     k_min = k_max = math.nan
-    if curvature is not None and len(curvature.table_vertices):
-        t = curvature.table_vertices
+    t = [] if curvature is None else curvature.table_sites[~curvature.crease[curvature.table_sites]]
+    if len(t):
         k_min = float(np.min(curvature.k2[t]))
         k_max = float(np.max(curvature.k1[t]))
 

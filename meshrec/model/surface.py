@@ -26,10 +26,11 @@ from typing import Protocol, runtime_checkable
 import igl
 import numpy as np
 
+from meshrec import defaults
 from meshrec.model._arrays import readonly
 from meshrec.model.mesh import MeshData
 
-__all__ = ["AabbSurface", "SurfaceQuery", "edge_bulges"]
+__all__ = ["AabbSurface", "SurfaceQuery", "corner_normals", "edge_bulges"]
 
 
 @runtime_checkable
@@ -108,13 +109,13 @@ class AabbSurface:
 
     @classmethod
     def from_mesh(cls, mesh: MeshData, crease_angle_deg: float) -> AabbSurface:
-        """The surface queries of a mesh, its bulges computed from the vertex normals.
+        """The surface queries of a mesh, its bulges computed from the corner normals.
 
         Parameters
         ----------
         mesh : MeshData
         crease_angle_deg : float
-            Adjacent vertex normals further apart than this (degrees) mark a crease, where
+            Adjacent corner normals further apart than this (degrees) mark a crease, where
             the faces do not bulge (e.g. ``IndexParams.crease_angle_deg``).
 
         Returns
@@ -163,11 +164,27 @@ class AabbSurface:
             raise ValueError(f"points must have shape (n, 3), got {P.shape}")
         if not np.isfinite(P).all():
             raise ValueError("points must be finite, got NaN or inf")
-        sqr, face, closest = self._tree().squared_distance(self.mesh.vertices, self.mesh.faces, P)
+        V, F = self.mesh.vertices, self.mesh.faces
+        tree = self._tree()
+        if len(P) < _SORT_MIN_POINTS:
+            sqr, face, closest = tree.squared_distance(V, F, P)
+        else:
+            # Queried in Morton (Z-curve) order and put back: neighbouring queries then
+            # walk the same branches of the tree, in cache. Each point's answer is its own
+            # (the same bits in any order); measured on 20,000 scattered points on the
+            # 81,920-face ellipsoid: 1.7 us per point sorted against 4.5 us unsorted.
+            order = _morton_order(P)
+            sqr_s, face_s, closest_s = tree.squared_distance(V, F, P[order])
+            sqr = np.empty_like(sqr_s)
+            sqr[order] = sqr_s
+            face = np.empty_like(face_s)
+            face[order] = face_s
+            closest = np.empty_like(closest_s)
+            closest[order] = closest_s
         return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
 
     def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
-        """Height of the smooth surface implied by the vertex normals above the flat faces.
+        """Height of the smooth surface implied by the corner normals above the flat faces.
 
         The signed distance to the smooth surface is the signed distance to the face minus
         this height (see the module's description).
@@ -220,7 +237,8 @@ class AabbSurface:
         return heights, gradients
 
     def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
-        """The smooth normal field at points on faces: barycentric vertex-normal blend.
+        """The smooth normal field at points on faces: barycentric blend of the faces'
+        corner normals (see :func:`corner_normals`).
 
         Parameters
         ----------
@@ -255,7 +273,7 @@ class AabbSurface:
             raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
         tri = mesh.faces[f]  # (n, 3)
         w = self._barycentric(P, f)
-        normals = np.einsum("ni,nij->nj", w, mesh.vertex_normals[tri])
+        normals = np.einsum("ni,nij->nj", w, self._face_table()["corner_normals"][f])
         norm = np.linalg.norm(normals, axis=1)
         bad = ~(norm > 1e-12)
         if bad.any():
@@ -263,6 +281,11 @@ class AabbSurface:
             fn = np.cross(b - a, c - a)
             normals[bad] = fn
             norm[bad] = np.linalg.norm(fn, axis=1)
+        if (norm > 0).all():
+            # The common case, without the error-state and NaN passes (a chart evaluation
+            # of the searches asks one point at a time: they were half its cost).
+            normals /= norm[:, None]
+            return normals
         with np.errstate(invalid="ignore", divide="ignore"):
             normals /= norm[:, None]
         return np.nan_to_num(normals, nan=0.0)
@@ -289,7 +312,14 @@ class AabbSurface:
             inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
             grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
             grads *= inv[:, :, None]
-            table = {"a": a, "b": b, "c": c, "ok": ok, "grads": grads}
+            table = {
+                "a": a,
+                "b": b,
+                "c": c,
+                "ok": ok,
+                "grads": grads,
+                "corner_normals": corner_normals(self.mesh),
+            }
             self.__dict__["_faces_cache"] = table
         return table
 
@@ -312,6 +342,29 @@ class AabbSurface:
         return w / w.sum(axis=1, keepdims=True)
 
 
+#: Queries of at least this many points are sorted along a Morton curve first (the sort
+#: costs about what it saves below a few hundred points).
+_SORT_MIN_POINTS = 512
+
+#: Bits per axis of the Morton code (a 1024^3 grid over the queries' bounding box).
+_MORTON_BITS = 10
+
+
+def _morton_order(P: np.ndarray) -> np.ndarray:
+    """The permutation that sorts points ``(n, 3)`` along a Morton (Z-order) curve over
+    their bounding box (hand-written: numpy, scipy and trimesh have no Morton sort)."""
+    lo = P.min(axis=0)
+    span = float((P.max(axis=0) - lo).max())
+    scale = (2**_MORTON_BITS - 1) / span if span > 0 else 0.0
+    q = ((P - lo) * scale).astype(np.uint64)
+    code = np.zeros(len(P), dtype=np.uint64)
+    one = np.uint64(1)
+    for b in range(_MORTON_BITS):
+        for d in range(3):
+            code |= ((q[:, d] >> np.uint64(b)) & one) << np.uint64(3 * b + d)
+    return np.argsort(code, kind="stable")
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross products of (n, 3) arrays.
 
@@ -326,13 +379,13 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def edge_bulges(mesh: MeshData, crease_angle_deg: float) -> np.ndarray:
-    """The smooth surface's bulge per face and edge, from the mesh's vertex normals.
+    """The smooth surface's bulge per face and edge, from the faces' corner normals.
 
     Parameters
     ----------
     mesh : MeshData
     crease_angle_deg : float
-        Edges whose vertex normals differ by more than this (degrees) are creases, with
+        Edges whose corner normals differ by more than this (degrees) are creases, with
         no bulge.
 
     Returns
@@ -352,11 +405,44 @@ def edge_bulges(mesh: MeshData, crease_angle_deg: float) -> np.ndarray:
     a = float(crease_angle_deg)
     if not 0 < a <= 180:
         raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {crease_angle_deg!r}")
-    return _edge_bulges(mesh.vertices, mesh.faces, mesh.vertex_normals, a)
+    return _edge_bulges(mesh.vertices, mesh.faces, corner_normals(mesh), a)
+
+
+def corner_normals(mesh: MeshData) -> np.ndarray:
+    """Per face and corner, the normal of the smooth surface: libigl's per-corner normals,
+    averaging only the faces around the corner's vertex whose normals are within
+    ``defaults.SITE_CREASE_ANGLE_DEG`` of the face's own.
+
+    Unlike the vertex normals, they keep a sharp edge sharp: at the rim of a cylinder
+    exported with 32 sections (every vertex on a rim), the side's corners get the radial
+    normal and the cap's the axial one, so the smooth surface is the cylinder's on the
+    side and flat on the cap (the vertex normal, half-way between, would bend both).
+
+    Parameters
+    ----------
+    mesh : MeshData
+
+    Returns
+    -------
+    (m, 3, 3) float64
+        Unit normals of corners 0, 1, 2 of every face.
+    """
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    # libigl's threshold compares face normals: in units of the model's size, so that
+    # its tolerances do not depend on the unit.
+    CN = igl.per_corner_normals(V / mesh.scale, F, defaults.SITE_CREASE_ANGLE_DEG)
+    CN = CN.reshape(len(F), 3, 3)
+    bad = ~np.isfinite(CN).all(axis=2) | ~(np.linalg.norm(CN, axis=2) > 0.5)
+    if bad.any():
+        # Degenerate faces: fall back on the vertex normals.
+        CN[bad] = mesh.vertex_normals[F][bad]
+    return CN
 
 
 def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray, crease_deg: float) -> np.ndarray:
-    """Per face and edge (01, 12, 20), the bulge d_ij = (p_j - p_i) . (n_j - n_i) / 2.
+    """Per face and edge (01, 12, 20), the bulge d_ij = (p_j - p_i) . (n_j - n_i) / 2, with
+    ``N`` (m, 3, 3) the faces' corner normals.
 
     The quadratic patch h(b) = sum b_i b_j d_ij over a face's edges, with b its barycentric
     coordinates, is the height of the smooth surface above the flat face that its vertex
@@ -371,7 +457,7 @@ def _edge_bulges(V: np.ndarray, F: np.ndarray, N: np.ndarray, crease_deg: float)
     cos_max = np.cos(np.radians(crease_deg))
     for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
         pi, pj = V[F[:, i]], V[F[:, j]]
-        ni, nj = N[F[:, i]], N[F[:, j]]
+        ni, nj = N[:, i], N[:, j]
         d = 0.5 * np.einsum("ij,ij->i", pj - pi, nj - ni)
         smooth = np.einsum("ij,ij->i", ni, nj) >= cos_max
         out[:, k] = np.where(smooth, d, 0.0)

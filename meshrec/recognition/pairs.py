@@ -102,8 +102,9 @@ def pair_seeds(
     )
     if len(T) == 0:
         return []
-    # Screen every pose on a few telling points with the distance to the nearest vertex
-    # (cheap; off by at most about an edge), then score the survivors exactly.
+    # Screen every pose on a few telling points with the distance to the nearest vertex or
+    # curvature site (cheap; off by at most about a site spacing), then score the
+    # survivors exactly.
     cap = defaults.PAIR_SCREEN_CAP * max(float(g.half_length) for g in geometries)
     T = _screen(model, touches, geometries, T, cap)
     rms = _subsample_rms(model, touches, T)
@@ -117,8 +118,8 @@ class _Side(NamedTuple):
     point: np.ndarray  # (3,) touch frame
     normal: np.ndarray  # (3,) touch frame
     x: np.ndarray  # (c, 3) spread model points whose (K, H) match
-    m: np.ndarray  # (c, 3) their vertex normals
-    gap: float  # covering radius of the spread over all the matching vertices
+    m: np.ndarray  # (c, 3) their normals
+    gap: float  # covering radius of the spread over all the matching sites
     kappa: float  # largest principal curvature magnitude of the touch side
 
 
@@ -131,23 +132,24 @@ def _spread(model, side: LocalGeometry, lookup_scale: float) -> _Side:
     if len(hits) == 0:
         empty = np.zeros((0, 3))
         return _Side(side.point, side.normal, empty, empty, 0.0, kappa)
-    x_hits = model.mesh.vertices[hits]
+    table = model.curvature
+    x_hits = table.points[hits]
     # Spread (farthest-point sampling) over at most PAIR_SPREAD_POOL of the hits, evenly
     # strided: its cost grows with both counts, and the covering radius below is measured
     # against every hit anyway.
     pool = hits[:: -(-len(hits) // defaults.PAIR_SPREAD_POOL)]
     chosen = pool[
         spread_points(
-            model.mesh.vertices[pool],
+            table.points[pool],
             defaults.CANDIDATE_SPACING_FRACTION * float(side.half_length),
             defaults.PAIR_CANDIDATES,
         )
     ]
-    x = model.mesh.vertices[chosen]
-    # How far a matching vertex (a possible true contact) may lie from the nearest
+    x = table.points[chosen]
+    # How far a matching site (a possible true contact) may lie from the nearest
     # spread point.
     gap = float(cKDTree(x).query(x_hits)[0].max())
-    return _Side(side.point, side.normal, x, model.mesh.vertex_normals[chosen], gap, kappa)
+    return _Side(side.point, side.normal, x, table.normals[chosen], gap, kappa)
 
 
 def _pair_poses(a: _Side, b: _Side) -> np.ndarray:
@@ -234,12 +236,14 @@ def _moved(T: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def _screen(model, touches, geometries, T: np.ndarray, cap: float) -> np.ndarray:
-    """The poses that put a few telling points nearest the model's vertices (capped).
+    """The poses that put a few telling points nearest the model's vertices and curvature
+    sites (capped; the sites cover the faces of a coarse mesh, whose vertices may all lie
+    on a few rims).
 
     Two rounds: each touch's contact and one far point for every pose, then those and a
     second far point per touch for the best ``defaults.PAIR_SCREEN_FIRST``; the best
     ``defaults.PAIR_SCREEN`` are returned, best first."""
-    tree = cKDTree(model.mesh.vertices)
+    tree = cKDTree(np.vstack([model.mesh.vertices, model.curvature.points]))
     probe, first = _probes(touches, geometries)
 
     def rms(poses, points):

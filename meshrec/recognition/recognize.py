@@ -15,7 +15,11 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.cascade import cascade_register
+from meshrec.recognition.edges import warn_sharp_edges
+from meshrec.recognition.freedom import PoseFreedom, pose_freedom
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -24,6 +28,7 @@ from meshrec.recognition.joint import (
     register_touches,
     search_pairs,
 )
+from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
 from meshrec.recognition.scoring import (
     ModelScore,
     WeightedPose,
@@ -34,10 +39,13 @@ from meshrec.recognition.scoring import (
     pose_weights,
     posterior,
 )
+from meshrec.recognition.symmetry import without_symmetries
 from meshrec.recognition.units import check_units
 from meshrec.recognition.workers import ModelWorkers
+from meshrec.registration.objective import residuals
 from meshrec.registration.register import Registration, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
+from meshrec.registration.transform import apply_transform
 
 __all__ = ["Recognition", "recognize"]
 
@@ -85,6 +93,17 @@ class Recognition:
     touch_rms : tuple of float or None
         RMS point-to-surface distance of each touch at the best model's reported pose,
         model units (None when no model was registered).
+    probe_radius : float
+        The probe's ball-tip radius the data were compared with the models for (0: a
+        point probe): the contacts and poses are those of the surface, the distances
+        those to the surface offset by it.
+    pose_freedom : PoseFreedom or None
+        The rigid motions the data leave free at the best model's reported pose
+        (:func:`meshrec.recognition.freedom.pose_freedom`): a flat face leaves two slides
+        and a turn, a cylinder's side a slide and a turn. None when no model was
+        registered. When any motion is free the verdict is never ``recognised``: with one
+        plausible model it is ``ambiguous`` with that model alone, and the reason says the
+        model is named but the pose is not fixed.
     """
 
     touch: TouchData
@@ -102,6 +121,8 @@ class Recognition:
     touches: tuple[TouchData, ...] = ()
     geometries: tuple[LocalGeometry, ...] = ()
     touch_rms: tuple[float | None, ...] = ()
+    probe_radius: float = 0.0
+    pose_freedom: PoseFreedom | None = None
 
     @property
     def best(self) -> Registration | None:
@@ -132,8 +153,10 @@ def recognize(
     method: str = defaults.SEARCH_METHOD,
     progress: Callable[[int, int, str], None] | None = None,
     geometry: LocalGeometry | Sequence[LocalGeometry] | None = None,
+    probe_radius: float | None = None,
     workers=None,
     scheduler: str | None = None,
+    cascade: bool | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -153,6 +176,14 @@ def recognize(
     geometry : LocalGeometry or sequence of LocalGeometry, optional
         The local geometry at each touch's contact, if already estimated (by
         :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
+    probe_radius : float, optional
+        Radius of the probe's ball tip, data units (the data are the ball's centres, on
+        the surface offset outwards by it): the models are compared with their offset
+        surfaces (:func:`meshrec.model.probe.probe_model`) and the curvatures at the
+        touch corrected (:func:`meshrec.contact.probe.surface_geometry`). Default: the
+        touches' own ``probe_radius`` (from the touch JSON), else 0 (a point probe).
+        Without a radius, data that fit a model's offset surface clearly better than
+        the surface itself raise a :class:`~meshrec.contact.probe.ProbeOffsetWarning`.
     workers : int or ModelWorkers or None
         Where the per-model registrations run (:mod:`meshrec.recognition.workers`): None,
         in this process; an int, that many local processes (for this call); a
@@ -160,6 +191,14 @@ def recognize(
         The result is the same as a serial run's.
     scheduler : str or None
         The address of a Dask ``distributed`` scheduler to run them on (for this call).
+    cascade : bool, optional
+        With one touch, run the local searches only on the models whose best conceivable
+        fit after the first stages is within reach of the leaders'
+        (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
+        refined. False: the full search on every model. Default ``defaults.CASCADE``.
+        The cascade runs in this process: with ``workers`` or ``scheduler`` in use the
+        full search runs on every model (the result of a serial run with
+        ``cascade=False``).
 
     Returns
     -------
@@ -186,10 +225,15 @@ def recognize(
         does not hold one LocalGeometry per touch, a touch's size is out of all
         proportion to every model's (a likely unit mismatch, see
         :func:`meshrec.recognition.units.check_units`) or to another touch's
-        (:func:`meshrec.recognition.joint.check_touch_sizes`), or the curves do not allow
-        an estimate of the local geometry; or as
-        :class:`~meshrec.recognition.workers.ModelWorkers` for ``workers`` and
-        ``scheduler``.
+        (:func:`meshrec.recognition.joint.check_touch_sizes`), the curves do not allow
+        an estimate of the local geometry, ``probe_radius`` is negative or not finite,
+        the touches give different radii (or one other than ``probe_radius``), or a
+        touch with a ``normal`` is curved more tightly than the tip where it is convex
+        (``probe_radius`` at least its smallest radius of curvature: no ball of that
+        radius traces such data); or as :class:`~meshrec.recognition.workers.ModelWorkers`
+        for ``workers`` and ``scheduler``.
+    TypeError
+        If ``cascade`` is not a bool or None.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -197,6 +241,10 @@ def recognize(
     check_choice(method, SEARCH_METHODS, "method")
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+    if cascade is None:
+        cascade = defaults.CASCADE
+    if not isinstance(cascade, (bool, np.bool_)):
+        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
     if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
         raise TypeError(
             f"library must be a ModelLibrary or an iterable of ModelIndex, got "
@@ -205,18 +253,32 @@ def recognize(
     models = list(library)
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
+    radius = touch_probe_radius(touches, probe_radius)
+    models = [probe_model(m, radius) for m in models]
     caught: list = []
     run, own = _runner(models, workers, scheduler)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            if radius > 0.0:
+                geometries = tuple(
+                    g if g is not None else touch_geometry(t)
+                    for t, g in zip(touches, geometries, strict=True)
+                )
+                check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0], run)
+                rec = _rank(
+                    touches[0], models, method, progress, geometries[0], run, bool(cascade)
+                )
                 rec = _with_verdict(rec, {}, models, method, run)
             else:
                 rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
                 rec = _with_verdict(rec, fits, models, method, run)
+            rec = _with_pose_freedom(rec, models)
             _warn_coarse(rec, models)
+            warn_sharp_edges(rec, models)
+            if radius == 0.0 and len(touches) == 1:
+                warn_probe_offset(rec, models)
     finally:
         if own:
             run.close()
@@ -226,7 +288,92 @@ def recognize(
         for w in raised:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
-    return dataclasses.replace(rec, warnings=texts, seconds=time.perf_counter() - t0)
+    return dataclasses.replace(
+        rec, warnings=texts, seconds=time.perf_counter() - t0, probe_radius=radius
+    )
+
+
+def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
+    """The pose freedom at the best model's pose; a free pose is never ``recognised``.
+
+    A touch on a flat face fits its model equally well after any slide on the face or turn
+    about its normal: the reported pose is then one of a continuum, not a measurement. The
+    model may still be the only one that fits; the verdict is then ``ambiguous`` with that
+    model alone in ``plausible``, and the reason says so.
+    """
+    best = rec.best
+    if best is None or best.T_model_touch is None:
+        return rec
+    model = {m.name: m for m in models}[best.model]
+    points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
+    y = apply_transform(best.T_model_touch, points)
+    normals, over = _pose_normals(model, y)
+    if np.count_nonzero(~over) >= 6:
+        y, normals = y[~over], normals[~over]
+    noise = float(rec.noise) if np.isfinite(rec.noise) else 0.0
+    freedom = without_symmetries(model, pose_freedom(y, normals), noise)
+    rec = dataclasses.replace(rec, pose_freedom=freedom)
+    if freedom.free == 0:
+        return rec
+    what = _freedom_phrase(freedom)
+    if rec.verdict == "recognised":
+        return dataclasses.replace(
+            rec,
+            verdict="ambiguous",
+            reason=(
+                f"only {best.model} fits the data (probability "
+                f"{rec.probabilities.get(best.model, float('nan')):.3f}), but "
+                f"the touch fixes its pose only up to {what}: the pose reported is one of "
+                "many that fit equally well; touch again across an edge or on a curved part "
+                "to fix it"
+            ),
+        )
+    return dataclasses.replace(
+        rec, reason=f"{rec.reason}; the best model's pose is free too ({what})"
+    )
+
+
+def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface normal at each point's closest point, and which points lie at a crease.
+
+    The normal is the residual's gradient (the smooth surface's normal). A point at a
+    crease, such as a flat touch that reaches a box's edge within the noise, has a normal
+    that jumps as it moves: a one-sided constraint (the touch may slide off the edge
+    inwards, not outwards) that the first-order test would count as a full one. Such points
+    (the normal turns by more than ``defaults.POSE_EDGE_DEG`` when the point moves by
+    ``defaults.POSE_EDGE_STEP`` times the points' spread along either tangent) are flagged,
+    to be left out of the test.
+    """
+    grad = residuals(model, points).gradient
+    unit = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
+    spread = float(np.sqrt(((points - points.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    step = defaults.POSE_EDGE_STEP * spread
+    # Two tangents per point, orthogonal to its normal.
+    helper = np.where(np.abs(unit[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(unit, helper)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    t2 = np.cross(unit, t1)
+    cos_limit = np.cos(np.radians(defaults.POSE_EDGE_DEG))
+    at_crease = np.zeros(len(points), dtype=bool)
+    for t in (t1, -t1, t2, -t2):
+        g = residuals(model, points + step * t).gradient
+        g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+        at_crease |= np.einsum("ij,ij->i", g, unit) < cos_limit
+    return grad, at_crease
+
+
+def _freedom_phrase(freedom: PoseFreedom) -> str:
+    """E.g. "2 slides and 1 turn (about the axis (0, 0, 1) through (1, 2, 3))"."""
+    parts = []
+    if freedom.slides:
+        parts.append(f"{freedom.slides} slide{'s' if freedom.slides > 1 else ''}")
+    if freedom.turns:
+        axes = "; ".join(
+            f"axis {np.array2string(a, precision=3)} through {np.array2string(p, precision=4)}"
+            for a, p in zip(freedom.turn_axes, freedom.turn_points, strict=True)
+        )
+        parts.append(f"{freedom.turns} turn{'s' if freedom.turns > 1 else ''} ({axes})")
+    return " and ".join(parts)
 
 
 def _runner(models: list, workers, scheduler) -> tuple[ModelWorkers, bool]:
@@ -290,7 +437,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry, run) -> Recognition:
+def _rank(touch, library, method, progress, geometry, run, cascade=False) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -301,7 +448,11 @@ def _rank(touch, library, method, progress, geometry, run) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = run.register_each(touch, models, geometry, method, progress=progress)
+    if cascade and run.mode == "serial":
+        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+        results = cascade_register(touch, models, geometry, noise, method, progress)
+    else:
+        results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,

@@ -65,7 +65,7 @@ def unit_factor(from_units: str, to_units: str) -> float:
 
 
 def convert_touch(touch: TouchData, from_units: str, to_units: str) -> TouchData:
-    """The touch with its curves and contact rescaled from one unit to another.
+    """The touch with its curves, contact and probe radius rescaled from one unit to another.
 
     The normal is a direction and is kept; the source is kept.
 
@@ -96,6 +96,7 @@ def convert_touch(touch: TouchData, from_units: str, to_units: str) -> TouchData
         contact=None if touch.contact is None else touch.contact * f,
         normal=touch.normal,
         source=touch.source,
+        probe_radius=None if touch.probe_radius is None else touch.probe_radius * f,
     )
 
 

@@ -43,6 +43,7 @@ from meshrec import defaults
 from meshrec.io.checks import check_instance
 from meshrec.model.cache import default_cache_dir
 from meshrec.model.index import IndexParams, ModelIndex
+from meshrec.model.probe import probe_model, probe_radius_of
 from meshrec.registration.register import register
 
 __all__ = ["ModelWorkers", "available_cores"]
@@ -113,21 +114,28 @@ def _warm(spec: _Spec) -> int:
     return len(_load(spec))
 
 
-def _register_chunk(spec: _Spec, fingerprints, touch, geometry, method, lookup_scale, trace):
+def _register_chunk(
+    spec: _Spec, fingerprints, touch, geometry, method, lookup_scale, trace, radii=None
+):
     """Register ``touch`` on the models of ``fingerprints`` (in a worker).
+
+    ``radii`` holds each model's probe radius (:func:`meshrec.model.probe.probe_model`:
+    the worker's models are loaded plain), None for all 0.
 
     Returns, per model in order, ``(registration, [(category, message), ...])``: the
     warnings are returned to be raised again by the caller.
     """
     models = _load(spec)
     out = []
-    for fp in fingerprints:
+    for j, fp in enumerate(fingerprints):
         model, have = models.get(fp[0], (None, None))
         if have != tuple(fp):
             raise ValueError(
                 f"model {fp[0]!r} differs in the worker (loaded {have}, expected {tuple(fp)}): "
                 "its file changed since the library was loaded, or the worker sees other files"
             )
+        if radii is not None and radii[j] > 0.0:
+            model = probe_model(model, radii[j])
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             reg = register(
@@ -332,6 +340,8 @@ class ModelWorkers:
         k = min(n, self.workers * defaults.PARALLEL_CHUNKS_PER_WORKER)
         chunks = [list(range(start, n, k)) for start in range(k)]
         args = (geometry, method, float(lookup_scale), bool(trace))
+        # the models may be seen through a probe tip (recognize's probe_radius)
+        radii = [probe_radius_of(m) for m in models]
         if self._client is not None:
             futures = [
                 self._client.submit(
@@ -340,6 +350,7 @@ class ModelWorkers:
                     [self._fingerprints[models[i].name] for i in c],
                     touch,
                     *args,
+                    [radii[i] for i in c],
                     pure=False,
                 )
                 for c in chunks
@@ -353,6 +364,7 @@ class ModelWorkers:
                     [self._fingerprints[models[i].name] for i in c],
                     touch,
                     *args,
+                    [radii[i] for i in c],
                 )
                 for c in chunks
             ]

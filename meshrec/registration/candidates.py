@@ -1,7 +1,8 @@
 """Candidate contacts: the table lookup over (K, H) and the spreading of its hits.
 
-Section 2.1 of the paper: the vertices whose Gaussian and mean curvatures are close to the
-estimate at p are candidate locations of p. On a sphere or cylinder every vertex matches,
+Section 2.1 of the paper: the curvature sites (points on the model's smooth surface, see
+:mod:`meshrec.model.curvature`) whose Gaussian and mean curvatures are close to the
+estimate at p are candidate locations of p. On a sphere or cylinder every site matches,
 and thousands of neighbouring hits would start the same local search in the same basin,
 so the hits are thinned by spreading them over the surface (farthest-point sampling with
 a minimum spacing), not by the best curvature match, which would cluster them.
@@ -25,15 +26,15 @@ class CandidateSet:
 
     Attributes
     ----------
-    vertices : (c,) int
-        Vertex indices of the spread candidates.
+    sites : (c,) int
+        Curvature-site indices (into ``model.curvature``) of the spread candidates.
     raw_hits : int
-        Vertices that matched the curvature lookup before spreading.
+        Sites that matched the curvature lookup before spreading.
     tol_K, tol_H : float
         The lookup's tolerances on K and H.
     """
 
-    vertices: np.ndarray
+    sites: np.ndarray
     raw_hits: int
     tol_K: float
     tol_H: float
@@ -137,7 +138,7 @@ def find_candidates(
     max_candidates: int = defaults.MAX_CANDIDATES,
     lookup_scale: float = 1.0,
 ) -> CandidateSet:
-    """Look up the vertices of ``model`` whose (K, H) match, then spread them.
+    """Look up the curvature sites of ``model`` whose (K, H) match, then spread them.
 
     Parameters
     ----------
@@ -181,8 +182,9 @@ def find_candidates(
         return CandidateSet(np.zeros(0, dtype=np.int64), 0, tol_K, tol_H)
     # Start from the closest match in (K, H) so that the best one is always tried.
     table = model.curvature
-    mismatch = np.abs(table.K[hits] - K) / tol_K + np.abs(table.H[hits] - H) / tol_H
-    first = int(np.argmin(mismatch))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mismatch = table.mismatch(hits, K, H, tol_K, tol_H)
+    first = int(np.argmin(np.nan_to_num(mismatch, nan=np.inf)))
     spacing = defaults.CANDIDATE_SPACING_FRACTION * half_length
-    chosen = spread_points(model.mesh.vertices[hits], spacing, max_candidates, first=first)
+    chosen = spread_points(table.points[hits], spacing, max_candidates, first=first)
     return CandidateSet(hits[chosen], len(hits), tol_K, tol_H)

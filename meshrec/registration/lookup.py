@@ -1,10 +1,16 @@
 """Stage 1 of a registration: candidate contacts from the (K, H) table lookup.
 
 For each side of the surface to try (one when the touch gives a normal and the model is
-closed, else both), the model's vertices whose curvatures match the estimate at the
-curves' common point are looked up and spread (see
+closed, else both), the model's curvature sites whose curvatures match the estimate at
+the curves' common point are looked up and spread (see
 :mod:`meshrec.registration.candidates`); each becomes a start for the later stages: its
 point and tangent frame on the model, and the data in the frame of its side.
+
+For a model seen through a ball-tipped probe (:func:`meshrec.model.probe.probe_model`)
+each side is the surface under the ball's centres
+(:func:`meshrec.contact.probe.surface_geometry`: the contact moved in by the tip radius
+along that side's normal, the curvatures corrected); a side the tip could not have
+traced (its convex curvature tighter than the tip) is not tried.
 """
 
 from __future__ import annotations
@@ -15,9 +21,11 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
+from meshrec.contact.probe import surface_geometry
 from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.model.probe import probe_radius_of
 from meshrec.registration.candidates import find_candidates
 from meshrec.registration.chart import SurfacePoint, tangent_frame
 
@@ -35,18 +43,20 @@ class ContactCandidates:
     points : (n, 3) float
         The touch's data points, touch frame.
     sides : tuple of LocalGeometry
-        The data frames tried: ``geometry``, then (when both sides are tried) its flip.
+        The data frames tried: ``geometry``, then (when both sides are tried) its flip
+        (for a model seen through a ball-tipped probe, the surface under the data on
+        each side, see :func:`surface_sides`).
     local_points : tuple of (n, 3) float
         The data points in each side's frame (origin at the contact, z along its normal).
     side : (c,) int
         Index into ``sides`` of each candidate.
-    vertices : (c,) int
-        The model vertex of each candidate.
+    sites : (c,) int
+        The model's curvature site of each candidate (index into ``model.curvature``).
     origins : tuple of SurfacePoint
-        Each candidate's point and tangent frame on the model (normal: the vertex normal;
-        first axis: the vertex's first principal direction).
+        Each candidate's point and tangent frame on the model (normal: the site's normal;
+        first axis: its first principal direction).
     raw_hits : int
-        Vertices matching the lookup before spreading, both sides together.
+        Sites matching the lookup before spreading, both sides together.
     tolerances : (k, 2) float
         The lookup's (tol_K, tol_H) for each side.
     """
@@ -56,13 +66,13 @@ class ContactCandidates:
     sides: tuple[LocalGeometry, ...] = field(repr=False)
     local_points: tuple[np.ndarray, ...] = field(repr=False)
     side: np.ndarray = field(repr=False)
-    vertices: np.ndarray = field(repr=False)
+    sites: np.ndarray = field(repr=False)
     origins: tuple[SurfacePoint, ...] = field(repr=False)
     raw_hits: int
     tolerances: np.ndarray = field(repr=False)
 
     def __len__(self) -> int:
-        return len(self.vertices)
+        return len(self.sites)
 
     @property
     def model_points(self) -> np.ndarray:
@@ -94,11 +104,18 @@ def surface_sides(geometry: LocalGeometry, touch: TouchData, model) -> tuple[Loc
     Returns
     -------
     tuple of LocalGeometry
-        ``(geometry,)`` or ``(geometry, geometry.flipped())``.
+        ``(geometry,)`` or ``(geometry, geometry.flipped())``; for a model seen through
+        a ball-tipped probe, the surface under the data on each side that a tip of that
+        radius could have traced (possibly none).
     """
     if touch.normal is not None and model.mesh.closed:
-        return (geometry,)
-    return (geometry, geometry.flipped())
+        sides = (geometry,)
+    else:
+        sides = (geometry, geometry.flipped())
+    radius = probe_radius_of(model)
+    if radius == 0.0:
+        return sides
+    return tuple(surface_geometry(s, radius) for s in sides if radius * s.k1 < 1.0)
 
 
 def lookup_candidates(
@@ -128,7 +145,7 @@ def lookup_candidates(
     Returns
     -------
     ContactCandidates
-        Possibly empty (no vertex matches).
+        Possibly empty (no site matches).
 
     Raises
     ------
@@ -151,7 +168,7 @@ def lookup_candidates(
     points = touch.points
     scale = float(geometry.half_length)
     sides = surface_sides(geometry, touch, model)
-    side_of, vertices, local_points, tolerances = [], [], [], []
+    side_of, sites, local_points, tolerances = [], [], [], []
     raw_hits = 0
     for k, side in enumerate(sides):
         cand = find_candidates(
@@ -166,14 +183,15 @@ def lookup_candidates(
         raw_hits += cand.raw_hits
         local_points.append((points - side.point) @ side.frame)
         tolerances.append((cand.tol_K, cand.tol_H))
-        side_of.extend([k] * len(cand.vertices))
-        vertices.extend(int(v) for v in cand.vertices)
+        side_of.extend([k] * len(cand.sites))
+        sites.extend(int(v) for v in cand.sites)
+    table = model.curvature
     origins = tuple(
         SurfacePoint(
-            point=model.mesh.vertices[v],
-            frame=tangent_frame(model.mesh.vertex_normals[v], hint=model.curvature.dir1[v]),
+            point=table.points[v],
+            frame=tangent_frame(table.normals[v], hint=table.dir1[v]),
         )
-        for v in vertices
+        for v in sites
     )
     return ContactCandidates(
         geometry=geometry,
@@ -181,7 +199,7 @@ def lookup_candidates(
         sides=sides,
         local_points=tuple(local_points),
         side=np.array(side_of, dtype=np.int64),
-        vertices=np.array(vertices, dtype=np.int64),
+        sites=np.array(sites, dtype=np.int64),
         origins=origins,
         raw_hits=raw_hits,
         tolerances=np.array(tolerances, dtype=np.float64).reshape(-1, 2),

@@ -7,6 +7,10 @@ where a point crosses the surface: the side is read from the normal of the close
 face, never from a winding number (unreliable on open meshes), and the
 magnitude is always the Euclidean distance, so a point beyond an open mesh's boundary is
 charged its true distance to that boundary.
+
+Data taken with a ball-tipped probe lie on the surface offset outwards by the tip radius
+R: for a model seen through such a probe (:func:`meshrec.model.probe.probe_model`) the
+residual is the signed distance (positive outside) minus R.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from meshrec.model.probe import probe_radius_of
 
 __all__ = ["Residuals", "mean_distances", "residuals"]
 
@@ -28,7 +34,8 @@ class Residuals:
         Distance to the surface, signed by the side of the closest face's normal: the
         Euclidean distance to the closest point of the mesh, less the height there of the
         smooth surface that the vertex normals imply (see
-        :meth:`meshrec.ModelIndex.smooth_offsets`).
+        :meth:`meshrec.ModelIndex.smooth_offsets`), less the model's probe radius
+        (:func:`meshrec.model.probe.probe_radius_of`; 0 for a plain model).
     closest : (n, 3) float
         Closest points on the surface.
     gradient : (n, 3) float
@@ -60,16 +67,23 @@ def residuals(model, points: np.ndarray) -> Residuals:
     diff = points - closest
     side = np.einsum("ij,ij->i", diff, normals)
     sign = np.where(side < 0.0, -1.0, 1.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        unit = diff / dist[:, None]
     tiny = dist <= 1e-12 * max(1.0, float(np.abs(points).max(initial=0.0)))
-    unit[tiny] = normals[tiny]
-    unit[~tiny] *= sign[~tiny, None]
+    if tiny.any():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = diff / dist[:, None]
+        unit[tiny] = normals[tiny]
+        unit[~tiny] *= sign[~tiny, None]
+    else:
+        # The common case without the masks (the same values: this runs at every
+        # evaluation of every search and refinement).
+        unit = diff / dist[:, None]
+        unit *= sign[:, None]
     # Distance to the smooth surface the vertex normals imply, not to the flat faces: the
     # height of that surface above the face is subtracted, and its slope along the face
     # (the closest point moves with the point) from the gradient.
     heights, slopes = model.surface.smooth_offsets_and_gradients(closest, face)
-    return Residuals(values=sign * dist - heights, closest=closest, gradient=unit - slopes)
+    values = sign * dist - heights - probe_radius_of(model)
+    return Residuals(values=values, closest=closest, gradient=unit - slopes)
 
 
 def mean_distances(model, points: np.ndarray) -> np.ndarray:
@@ -84,8 +98,15 @@ def mean_distances(model, points: np.ndarray) -> np.ndarray:
     Returns
     -------
     (k,) float
-        The mean distance of each batch (the paper's error (1) divided by ``n``).
+        The mean distance of each batch (the paper's error (1) divided by ``n``); for a
+        model seen through a ball-tipped probe, the distance to the offset surface
+        (``|signed distance - R|``, signed by the closest face's normal).
     """
     k, n, _ = points.shape
-    dist, _, _ = model.surface.closest_points(np.ascontiguousarray(points.reshape(-1, 3)))
+    flat = np.ascontiguousarray(points.reshape(-1, 3))
+    dist, closest, face = model.surface.closest_points(flat)
+    radius = probe_radius_of(model)
+    if radius > 0.0:
+        side = np.einsum("ij,ij->i", flat - closest, model.mesh.face_normals[face])
+        dist = np.abs(np.where(side < 0.0, -dist, dist) - radius)
     return dist.reshape(k, n).mean(axis=1)

@@ -10,6 +10,12 @@ The curves are sections of the *mesh* (not of an analytic surface): each is the 
 piece through the contact of the polyline where a cutting plane meets the mesh faces,
 resampled at equal arc length along that polyline and centred on the contact, so that the
 middle sample of every noiseless curve is exactly the contact.
+
+With a ball-tipped probe (``probe_radius`` R > 0) the data are the ball's centres: every
+curve sample is moved outwards by R along the smooth surface normal there (the vertex
+normals blended over its face), onto the true offset surface; a sample the ball could not
+reach without cutting into the mesh elsewhere (a concavity tighter than the tip) makes
+the contact unusable.
 """
 
 from __future__ import annotations
@@ -76,6 +82,11 @@ class SimulatedTouch:
     seed : int or None
         The integer seed that reproduces this touch (``rng=seed``), or None when a
         generator was passed in.
+    probe_radius : float
+        Radius of the probe's ball tip, model units (0: a point probe). With a tip the
+        curves are the ball's centres: ``clean_curves`` lie on the surface offset
+        outwards by it, and their middle rows are ``contact + probe_radius * normal``
+        (``normal`` there the smooth normal).
     """
 
     touch: TouchData
@@ -88,6 +99,7 @@ class SimulatedTouch:
     noise: float
     length: float
     seed: int | None
+    probe_radius: float = 0.0
 
     @property
     def n_points(self) -> int:
@@ -172,7 +184,8 @@ class SimulatedTouch:
         return (
             f"SimulatedTouch(model={self.model!r}, {len(self.clean_curves)} curves x "
             f"{self.n_points} points, contact={np.round(self.contact, 6).tolist()}, "
-            f"length={self.length:.6g}, noise={self.noise:g}, seed={self.seed})"
+            f"length={self.length:.6g}, noise={self.noise:g}, seed={self.seed}"
+            + (f", probe_radius={self.probe_radius:g})" if self.probe_radius else ")")
         )
 
 
@@ -187,6 +200,7 @@ def simulate_touch(
     length: float | None = None,
     transform: bool = True,
     name: str | None = None,
+    probe_radius: float = 0.0,
 ) -> SimulatedTouch:
     """Simulate a touch: three noisy curves on a mesh through one contact point.
 
@@ -226,6 +240,13 @@ def simulate_touch(
         frame.
     name : str, optional
         The model name to record; overrides the name taken from the file or object.
+    probe_radius : float
+        Radius of the probe's ball tip, model units, >= 0 (default 0: a point probe).
+        With a tip the curves are the ball's centres: each sample of a section curve is
+        moved outwards by it along the smooth normal (vertex normals blended over the
+        face), onto the offset surface, before the noise. Random contacts where the ball
+        could not touch the curves (it would cut into the mesh: a concavity tighter
+        than the tip) are redrawn.
 
     Returns
     -------
@@ -249,7 +270,10 @@ def simulate_touch(
         area, the curves through a given contact are too short for ``length`` (near an
         open boundary, or a closed section shorter than ``length``) for every one of
         ``defaults.SIM_CONTACT_PLANE_TRIES`` plane triples, or no random contact out of
-        ``defaults.SIM_MAX_TRIES`` admits curves of that length.
+        ``defaults.SIM_MAX_TRIES`` admits curves of that length; ``probe_radius`` is
+        negative or not finite, or the ball cannot trace the curves through a given
+        contact (or any random one): it would cut into the mesh (the tip is larger than
+        the radius of a concave part there).
     """
     n_points = _check_n_points(n_points)
     noise = check_number(noise, "noise", minimum=0.0)
@@ -261,6 +285,7 @@ def simulate_touch(
         raise TypeError(f"transform must be True or False, got {one_line(transform)}")
     if name is not None and not isinstance(name, str):
         raise TypeError(f"name must be a str, got {type(name).__name__}")
+    probe_radius = check_number(probe_radius, "probe_radius", minimum=0.0)
     generator, seed = _make_rng(rng)
 
     tm, model_name = _resolve_mesh(mesh)
@@ -290,6 +315,8 @@ def simulate_touch(
         for _ in range(defaults.SIM_CONTACT_PLANE_TRIES):
             curves, failure = _cut_curves(surface, c, normal, generator, n_points, length)
             if curves is not None:
+                curves, failure = _ball_centres(surface, curves, probe_radius)
+            if curves is not None:
                 break
         if curves is None:
             raise ValueError(
@@ -305,10 +332,13 @@ def simulate_touch(
             normal = surface.face_normals[int(faces[0])]
             curves, failure = _cut_curves(surface, c, normal, generator, n_points, length)
             if curves is not None:
+                curves, failure = _ball_centres(surface, curves, probe_radius)
+            if curves is not None:
                 break
         if curves is None:
+            tip = f", probe_radius={probe_radius:g}" if probe_radius else ""
             raise ValueError(
-                f"length={length:.6g}: none of {defaults.SIM_MAX_TRIES} random contacts on "
+                f"length={length:.6g}{tip}: none of {defaults.SIM_MAX_TRIES} random contacts on "
                 f"the mesh{f' {model_name!r}' if model_name else ''} has three section curves "
                 f"that long (last: {failure}); give a smaller length"
             )
@@ -334,6 +364,7 @@ def simulate_touch(
         noise=noise,
         length=float(length),
         seed=seed,
+        probe_radius=probe_radius,
     )
 
 
@@ -675,6 +706,49 @@ def _section_curve(
         curve = np.column_stack([np.interp(q, s, chain[:, j]) for j in range(3)])
     curve[n_points // 2] = c
     return curve, None
+
+
+def _ball_centres(
+    surface: _Surface, curves: list[np.ndarray], radius: float
+) -> tuple[list[np.ndarray] | None, str | None]:
+    """Move curve samples on the mesh outwards by ``radius`` along the smooth normal.
+
+    The smooth normal is the blend of the mesh's vertex normals (trimesh's, area-weighted)
+    by the sample's barycentric coordinates in its closest face (libigl). Each moved
+    sample must lie ``radius`` from the mesh (to 1 %): closer, the ball would cut into
+    the mesh elsewhere (a concavity tighter than the tip), and the curves are refused.
+
+    Returns
+    -------
+    curves : list of (n, 3) float or None
+    why : str or None
+    """
+    if radius == 0.0:
+        return curves, None
+    stacked = np.vstack(curves)
+    V, F = surface.vertices, surface.faces
+    _, face, closest = igl.point_mesh_squared_distance(stacked, V, F)
+    tri = V[F[face]]
+    w = igl.barycentric_coordinates(
+        np.ascontiguousarray(closest), tri[:, 0].copy(), tri[:, 1].copy(), tri[:, 2].copy()
+    )
+    w = np.clip(np.nan_to_num(w), 0.0, None)
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+    normals = np.einsum("ni,nij->nj", w, np.asarray(surface.mesh.vertex_normals)[F[face]])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    moved = stacked + radius * normals
+    sq, _, _ = igl.point_mesh_squared_distance(moved, V, F)
+    gap = float(np.sqrt(np.maximum(sq, 0.0)).min())
+    if gap < 0.99 * radius:
+        return None, (
+            f"a ball of radius {radius:g} touching the curves comes within {gap:.3g} of the "
+            "mesh elsewhere (a concavity tighter than the tip)"
+        )
+    out, start = [], 0
+    for cv in curves:
+        out.append(moved[start : start + len(cv)])
+        start += len(cv)
+    return out, None
 
 
 def _opposite_pair(nodes: list[np.ndarray], start: int, neighbours: list[int]) -> list[int]:

@@ -1,0 +1,327 @@
+"""Curvature sites: the smooth surface a mesh approximates, sampled independently of its
+triangles (issue 13, items 1 and 3).
+
+A per-vertex curvature table describes where a mesh's vertices happen to lie: a cylinder
+exported with 32 sections has every vertex on its two rims, none on the side wall. The
+sites are instead spread evenly over the surface (Poisson-disk sampling as trimesh's
+``sample_surface_even``) at a spacing tied to the model's size, lifted onto the smooth
+surface the vertex normals imply (:meth:`meshrec.model.surface.AabbSurface.smooth_offsets`),
+and their curvature is that of the smooth normal field: the normals are blended from
+per-corner normals that average only faces within the crease angle (libigl's
+``per_corner_normals``), so a box keeps its faces flat and a cylinder's side keeps its
+radial normals.
+
+Sharp feature edges (adjacent faces' normals further apart than the crease angle) split
+the surface into smooth *patches*; each face carries its patch label. Curvature and its
+neighbourhood range are measured within one patch. Points along the sharp edges become
+*crease sites*, holding both faces' normals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import igl
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from meshrec.model.mesh import MeshData
+
+__all__ = ["SiteSample", "sample_sites"]
+
+
+@dataclass(frozen=True)
+class SiteSample:
+    """The sites of one mesh and their curvature (the raw arrays of a curvature table).
+
+    Attributes
+    ----------
+    points : (n, 3) float64
+        Sites on the smooth surface, model coordinates.
+    normals : (n, 3) float64
+        Unit normals (for a crease site: the bisector of its two faces' normals).
+    normals2 : (n, 3) float64
+        A crease site's two face normals are ``normals2`` and its mirror about
+        ``normals``; equal to ``normals`` for a smooth site.
+    k1, k2 : (n,) float64
+        Principal curvatures, ``k1 >= k2``; NaN where ``valid`` is False.
+    dir1, dir2 : (n, 3) float64
+        Principal directions (for a crease site: across the edge and along it).
+    valid : (n,) bool
+    K_range, H_range : (n, 2) float64
+        Lowest and highest K and H over the site's neighbourhood in its patch.
+    crease : (n,) bool
+        Crease sites.
+    face_patch : (m,) int64
+        The smooth patch of each mesh face.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    normals2: np.ndarray
+    k1: np.ndarray
+    k2: np.ndarray
+    dir1: np.ndarray
+    dir2: np.ndarray
+    valid: np.ndarray
+    K_range: np.ndarray
+    H_range: np.ndarray
+    crease: np.ndarray
+    face_patch: np.ndarray
+
+
+def sample_sites(
+    mesh: MeshData,
+    surface,
+    spacing: float,
+    radius: float,
+    range_radius: float,
+    crease_angle_deg: float,
+    rng: np.random.Generator | int | None = 0,
+) -> SiteSample:
+    """Sample a mesh's smooth surface and estimate the curvature at the samples.
+
+    Parameters
+    ----------
+    mesh : MeshData
+    surface : AabbSurface
+        The mesh's surface queries (its smooth offsets lift the sites off the faces).
+    spacing : float
+        Distance between sites, model units (> 0).
+    radius : float
+        Radius of the neighbourhood the curvature is fitted over, model units (> 0).
+    range_radius : float
+        Radius of the neighbourhood whose curvatures make a site's range (>= 0).
+    crease_angle_deg : float
+        Adjacent faces whose normals differ by more than this are a sharp edge.
+    rng : numpy.random.Generator or int or None
+        Randomness of the sampling (default: seed 0, so an index is reproducible).
+
+    Returns
+    -------
+    SiteSample
+
+    Raises
+    ------
+    ValueError
+        If a length is not finite and positive (``range_radius``: non-negative) or the
+        crease angle is not in (0, 180].
+    """
+    for name, value, low in (("spacing", spacing, 0.0), ("radius", radius, 0.0)):
+        if not (math.isfinite(value) and value > low):
+            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    if not (math.isfinite(range_radius) and range_radius >= 0):
+        raise ValueError(f"range_radius must be finite and >= 0, got {range_radius!r}")
+    if not 0 < crease_angle_deg <= 180:
+        raise ValueError(f"crease_angle_deg must be in (0, 180] degrees, got {crease_angle_deg!r}")
+    rng = np.random.default_rng(rng)
+    # Everything in units of the model's size (trimesh's and libigl's tolerances are
+    # absolute), back to model units at the end.
+    unit = mesh.scale
+    V, F = mesh.vertices / unit, mesh.faces
+    spacing, radius, range_radius = spacing / unit, radius / unit, range_radius / unit
+    tm = trimesh.Trimesh(V, F, process=False, validate=False)
+    face_patch, sharp = _patches(tm, crease_angle_deg)
+
+    # Smooth sites: Poisson-disk samples, lifted onto the smooth surface.
+    area = float(tm.area)
+    # trimesh's sample_surface_even, without its warning that fewer samples than asked
+    # remain: uniform samples, thinned to at least ``spacing`` apart.
+    count = max(math.ceil(6.0 * area / spacing**2), 48)
+    seed = int(rng.integers(2**31))
+    pts, face = trimesh.sample.sample_surface(tm, count, seed=seed)
+    pts, keep = trimesh.points.remove_close(np.asarray(pts, dtype=np.float64), spacing)
+    face = np.asarray(face, dtype=np.int64)[keep]
+    ok = mesh.face_normals[face].any(axis=1) if len(face) else np.zeros(0, bool)
+    pts, face = pts[ok], face[ok]
+    corner = igl.per_corner_normals(V, F, float(crease_angle_deg)).reshape(-1, 3, 3)
+    w = _barycentric(V, F, pts, face)
+    normals = _unit(np.einsum("ni,nij->nj", w, corner[face]))
+    lift = surface.smooth_offsets(pts * unit, face) / unit
+    pts = pts + lift[:, None] * mesh.face_normals[face]
+    k1, k2, dir1, dir2, valid = _shape_operator(pts, normals, face_patch[face], radius)
+    patch = face_patch[face]
+
+    # Crease sites along the sharp edges.
+    cp, cn, cn2, cd1, cd2, ck1, cpatch = _crease_sites(tm, sharp, spacing, radius)
+
+    points = np.vstack([pts, cp])
+    n_smooth = len(pts)
+    crease = np.zeros(len(points), dtype=bool)
+    crease[n_smooth:] = True
+    K = np.concatenate([k1 * k2, np.zeros(len(cp))])
+    H = np.concatenate([0.5 * (k1 + k2), 0.5 * ck1])
+    valid_all = np.concatenate([valid, np.ones(len(cp), dtype=bool)])
+    K_range, H_range = _ranges(
+        points, np.concatenate([patch, cpatch]), K, H, valid_all & ~crease, range_radius
+    )
+    # A crease's curvature, as curves across it report it, depends on where they cross
+    # it and how long they are: any curvature bending its way, with K about 0.
+    sign = np.sign(ck1)
+    K_range[n_smooth:] = 0.0
+    H_range[n_smooth:] = np.column_stack(
+        [np.where(sign > 0, 0.0, -np.inf), np.where(sign > 0, np.inf, 0.0)]
+    )
+    K_range[:n_smooth] /= unit**2
+    H_range[:n_smooth] /= unit
+    return SiteSample(
+        points=points * unit,
+        normals=np.vstack([normals, cn]),
+        normals2=np.vstack([normals, cn2]),
+        k1=np.concatenate([k1, np.maximum(ck1, 0.0)]) / unit,
+        k2=np.concatenate([k2, np.minimum(ck1, 0.0)]) / unit,
+        dir1=np.vstack([dir1, cd1]),
+        dir2=np.vstack([dir2, cd2]),
+        valid=valid_all,
+        K_range=K_range,
+        H_range=H_range,
+        crease=crease,
+        face_patch=face_patch,
+    )
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.nan_to_num(v / n, nan=0.0)
+
+
+def _barycentric(V, F, pts, face) -> np.ndarray:
+    """Barycentric coordinates (n, 3) of points in their faces, clipped and normalised."""
+    if len(face) == 0:
+        return np.zeros((0, 3))
+    tri = F[face]
+    w = igl.barycentric_coordinates(
+        np.ascontiguousarray(pts),
+        np.ascontiguousarray(V[tri[:, 0]]),
+        np.ascontiguousarray(V[tri[:, 1]]),
+        np.ascontiguousarray(V[tri[:, 2]]),
+    )
+    w = np.nan_to_num(np.clip(w, 0.0, None), nan=1.0 / 3.0)
+    s = w.sum(axis=1, keepdims=True)
+    return np.where(s > 0, w / np.where(s > 0, s, 1.0), 1.0 / 3.0)
+
+
+def _patches(tm: trimesh.Trimesh, crease_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Patch label per face (faces joined across smooth edges) and the sharp edges' rows
+    of ``tm.face_adjacency``."""
+    adj = tm.face_adjacency
+    angles = tm.face_adjacency_angles
+    sharp = angles > math.radians(crease_deg)
+    m = len(tm.faces)
+    smooth = adj[~sharp]
+    graph = coo_matrix((np.ones(len(smooth)), (smooth[:, 0], smooth[:, 1])), shape=(m, m))
+    _, labels = connected_components(graph, directed=False)
+    return labels.astype(np.int64), np.flatnonzero(sharp)
+
+
+def _shape_operator(points, normals, patch, radius):
+    """Principal curvatures and directions of the normal field at each site.
+
+    Hand-written because it fits the *normal field* (dn = S dp, least squares over the
+    sites within ``radius`` in the same patch, S symmetrised), not positions: libigl's
+    quadric fit of vertex positions sees the flat facets of a coarse mesh, while the
+    blended normals carry the smooth surface (a 32-section cylinder's side included).
+    Sign: libigl's (a sphere with outward normals has +1/r).
+    """
+    n = len(points)
+    k1 = np.full(n, np.nan)
+    k2 = np.full(n, np.nan)
+    d1 = np.zeros((n, 3))
+    d2 = np.zeros((n, 3))
+    valid = np.zeros(n, dtype=bool)
+    if n < 3:
+        return k1, k2, d1, d2, valid
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
+    pairs = pairs[patch[pairs[:, 0]] == patch[pairs[:, 1]]]
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    # Tangent basis at every site.
+    t1 = np.cross(normals, np.where(np.abs(normals[:, [0]]) < 0.9, [1.0, 0, 0], [0, 1.0, 0]))
+    t1 = _unit(t1)
+    t2 = np.cross(normals, t1)
+    dp = points[j] - points[i]
+    dn = normals[j] - normals[i]
+    x = np.column_stack([np.einsum("ij,ij->i", dp, t1[i]), np.einsum("ij,ij->i", dp, t2[i])])
+    y = np.column_stack([np.einsum("ij,ij->i", dn, t1[i]), np.einsum("ij,ij->i", dn, t2[i])])
+    # Weights: closer neighbours count more (a smooth fall-off to the ball's edge).
+    wgt = 1.0 - (np.linalg.norm(dp, axis=1) / radius) ** 2
+    A = np.zeros((n, 2, 2))
+    B = np.zeros((n, 2, 2))
+    np.add.at(A, i, wgt[:, None, None] * x[:, :, None] * x[:, None, :])
+    np.add.at(B, i, wgt[:, None, None] * y[:, :, None] * x[:, None, :])
+    count = np.bincount(i, minlength=n)
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] ** 2
+    tr = A[:, 0, 0] + A[:, 1, 1]
+    good = (count >= 3) & (det > 1e-3 * tr**2) & (normals.any(axis=1))
+    S = np.zeros((n, 2, 2))
+    S[good] = B[good] @ np.linalg.inv(A[good])
+    S = 0.5 * (S + np.swapaxes(S, 1, 2))
+    evals, evecs = np.linalg.eigh(S)  # ascending
+    k1[good] = evals[good, 1]
+    k2[good] = evals[good, 0]
+    e1, e2 = evecs[:, :, 1], evecs[:, :, 0]
+    d1[good] = (e1[:, [0]] * t1 + e1[:, [1]] * t2)[good]
+    d2[good] = (e2[:, [0]] * t1 + e2[:, [1]] * t2)[good]
+    good &= np.isfinite(k1) & np.isfinite(k2)
+    valid[:] = good
+    k1[~good] = np.nan
+    k2[~good] = np.nan
+    d1[~good] = 0.0
+    d2[~good] = 0.0
+    return k1, k2, d1, d2, valid
+
+
+def _crease_sites(tm: trimesh.Trimesh, sharp: np.ndarray, spacing: float, radius: float):
+    """Sites along the sharp edges: points, bisector normals, one face normal, directions
+    (across, along), a signed nominal curvature (+ convex) and a patch label."""
+    empty3 = np.zeros((0, 3))
+    if len(sharp) == 0:
+        z = np.zeros(0)
+        return empty3, empty3, empty3, empty3, empty3, z, np.zeros(0, dtype=np.int64)
+    edges = tm.face_adjacency_edges[sharp]
+    faces = tm.face_adjacency[sharp]
+    convex = tm.face_adjacency_convex[sharp]
+    angle = tm.face_adjacency_angles[sharp]
+    a, b = tm.vertices[edges[:, 0]], tm.vertices[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    steps = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
+    row = np.repeat(np.arange(len(edges)), steps)
+    first = np.cumsum(steps) - steps
+    t = (np.arange(len(row)) - first[row] + 0.5) / steps[row]
+    points = a[row] + t[:, None] * (b - a)[row]
+    fn = tm.face_normals
+    n1, n2 = fn[faces[row, 0]], fn[faces[row, 1]]
+    normal = _unit(n1 + n2)
+    along = _unit((b - a)[row])
+    across = _unit(np.cross(along, normal))
+    sign = np.where(convex[row], 1.0, -1.0)
+    k = sign * angle[row] / radius
+    # A separate patch per crease (never mixed with smooth sites' ranges).
+    patch = -1 - row
+    return points, normal, n1, across, along, k, patch.astype(np.int64)
+
+
+def _ranges(points, patch, K, H, use, radius):
+    """Lowest and highest (K, H) over each site's ``radius`` neighbourhood in its patch
+    (the site's own values included)."""
+    n = len(points)
+    K_range = np.column_stack([K, K]).astype(np.float64)
+    H_range = np.column_stack([H, H]).astype(np.float64)
+    if radius <= 0 or n < 2:
+        return K_range, H_range
+    keep = np.flatnonzero(use)
+    pairs = cKDTree(points[keep]).query_pairs(radius, output_type="ndarray")
+    pairs = keep[pairs]
+    pairs = pairs[patch[pairs[:, 0]] == patch[pairs[:, 1]]]
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    np.minimum.at(K_range[:, 0], i, K[j])
+    np.maximum.at(K_range[:, 1], i, K[j])
+    np.minimum.at(H_range[:, 0], i, H[j])
+    np.maximum.at(H_range[:, 1], i, H[j])
+    return K_range, H_range

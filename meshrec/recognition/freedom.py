@@ -1,0 +1,193 @@
+"""Pose freedom: which rigid motions the touch data leave unconstrained at a fitted pose.
+
+A touch on a flat face fixes the pose only up to two slides on the face and a turn about its
+normal; on a cylinder's side, up to a slide along and a turn about its axis; on a sphere, up
+to three turns about its centre. The point-to-surface residuals then do not change (to first
+order) along those motions, whatever the optimiser reports as "the" pose.
+
+The test is the rank of the rigid Jacobian of the residuals at the pose: one row
+``[n_i, (x_i - c) / L x n_i]`` per data point ``x_i`` (model frame) with the surface normal
+``n_i`` at its closest point, ``c`` the points' centroid and ``L`` their RMS distance from
+it (so slides and turns are measured alike: a turn of one radian moves the points by about
+``L``). A right singular vector whose singular value is below
+``defaults.POSE_FREE_RATIO`` times the largest is a free motion. The free subspace is then
+split into turns (the rank of its rotational part) and slides (the motions in it with no
+rotation); a slide's direction and a turn's axis are reported in the model frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from meshrec import defaults
+from meshrec.io.checks import check_points
+
+__all__ = ["PoseFreedom", "pose_freedom"]
+
+
+@dataclass(frozen=True)
+class PoseFreedom:
+    """The rigid motions the data leave free at a pose.
+
+    Attributes
+    ----------
+    free : int
+        Number of free rigid degrees of freedom (0 to 6): ``slides + turns``.
+    slides : int
+        Free translations.
+    turns : int
+        Free rotations (possibly with a translation along or across their axis).
+    slide_directions : (slides, 3) float64
+        Unit directions of the free translations, model frame (orthonormal).
+    turn_axes : (turns, 3) float64
+        Unit axes of the free rotations, model frame.
+    turn_points : (turns, 3) float64
+        A point on each turn's axis, model frame (the closest to the data's centroid).
+    singular_values : (6,) float64
+        The Jacobian's singular values relative to the largest, descending.
+    ratio : float
+        The threshold below which a singular value counted as free.
+    symmetries : tuple of str
+        Free motions that map the whole model onto itself (for instance a turn about a
+        body of revolution's axis), left out of ``free``, ``slides`` and ``turns``: along
+        them every pose is the same placement of the object
+        (:func:`meshrec.recognition.symmetry.without_symmetries`). Empty when not tested.
+    """
+
+    free: int
+    slides: int
+    turns: int
+    slide_directions: np.ndarray
+    turn_axes: np.ndarray
+    turn_points: np.ndarray
+    singular_values: np.ndarray
+    ratio: float
+    symmetries: tuple[str, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """``("slide", ..., "turn", ...)``: one name per free degree of freedom."""
+        return ("slide",) * self.slides + ("turn",) * self.turns
+
+    @property
+    def description(self) -> str:
+        """A short phrase: "fixed", or e.g. "free: 2 slides and 1 turn"."""
+        if self.free == 0:
+            return "fixed up to the model's symmetry" if self.symmetries else "fixed"
+        words = []
+        if self.slides:
+            words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
+        if self.turns:
+            words.append(f"{self.turns} turn{'s' if self.turns > 1 else ''}")
+        return "free: " + " and ".join(words)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
+        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``,
+        ``symmetries``."""
+        return {
+            "free": int(self.free),
+            "slides": int(self.slides),
+            "turns": int(self.turns),
+            "names": list(self.names),
+            "description": self.description,
+            "slide_directions": self.slide_directions.tolist(),
+            "turn_axes": self.turn_axes.tolist(),
+            "turn_points": self.turn_points.tolist(),
+            "singular_values": self.singular_values.tolist(),
+            "symmetries": list(self.symmetries),
+        }
+
+    def __repr__(self) -> str:
+        return f"PoseFreedom({self.description}, smallest={self.singular_values[-1]:.2g})"
+
+
+def pose_freedom(
+    points: np.ndarray, normals: np.ndarray, ratio: float = defaults.POSE_FREE_RATIO
+) -> PoseFreedom:
+    """The rigid motions that leave the point-to-surface residuals unchanged to first order.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        The data points at the fitted pose, model frame; at least 6.
+    normals : (n, 3) float
+        The surface normal at each point's closest point (the residual's gradient); need
+        not be unit (it is normalised).
+    ratio : float
+        A singular value below ``ratio`` times the largest is free; in (0, 1).
+
+    Returns
+    -------
+    PoseFreedom
+
+    Raises
+    ------
+    TypeError
+        If ``points`` is not an array of real numbers.
+    ValueError
+        If ``points`` is not (n, 3) finite with n >= 6 or its points all coincide,
+        ``normals`` does not have the same shape, is not finite or has a zero row, or
+        ``ratio`` is not in (0, 1).
+    """
+    x = check_points(points, "points", min_rows=6)
+    n = np.asarray(normals, dtype=np.float64)
+    if n.shape != x.shape or not np.all(np.isfinite(n)):
+        raise ValueError(
+            f"normals must be finite with the shape of points {x.shape}, got shape {n.shape}"
+        )
+    length = np.linalg.norm(n, axis=1)
+    if np.any(length <= 0.0):
+        raise ValueError(f"normals must not have zero rows, got {int(np.sum(length <= 0))}")
+    if not (isinstance(ratio, (int, float)) and 0.0 < float(ratio) < 1.0):
+        raise ValueError(f"ratio must be a number in (0, 1), got {ratio!r}")
+    n = n / length[:, None]
+    c = x.mean(axis=0)
+    scale = float(np.sqrt(((x - c) ** 2).sum(axis=1).mean()))
+    if scale <= 0.0:
+        raise ValueError("points must not all coincide")
+    # Velocity of a point under the twist (t, w): t + (w / L) x (x - c); its normal part is
+    # n . t + ((x - c) / L x n) . w, one row per point.
+    J = np.hstack([n, np.cross((x - c) / scale, n)])
+    _, s, vt = np.linalg.svd(J, full_matrices=False)
+    rel = s / s[0]
+    null = vt[rel < ratio]  # (k, 6) orthonormal free twists
+    k = len(null)
+    slides_dirs = np.zeros((0, 3))
+    axes = np.zeros((0, 3))
+    pts = np.zeros((0, 3))
+    if k:
+        # Split the free subspace: combinations with no rotational part are slides; the
+        # rest (the rank of the rotational block) are turns.
+        u, sw, _ = np.linalg.svd(null[:, 3:], full_matrices=True)
+        sw = np.concatenate([sw, np.zeros(k - len(sw))])
+        turning = sw > defaults.POSE_TURN_FRACTION
+        twists = u.T @ null  # (k, 6), rotated basis of the free subspace
+        slides_dirs = _orthonormal(twists[~turning, :3])
+        axes, pts = [], []
+        for tw in twists[turning]:
+            t, w = tw[:3], tw[3:] / scale  # the rotation in radians per unit twist
+            axes.append(w / np.linalg.norm(w))
+            pts.append(c + np.cross(w, t) / float(w @ w))
+        axes = np.array(axes).reshape(-1, 3)
+        pts = np.array(pts).reshape(-1, 3)
+    return PoseFreedom(
+        free=k,
+        slides=len(slides_dirs),
+        turns=len(axes),
+        slide_directions=slides_dirs,
+        turn_axes=axes,
+        turn_points=pts,
+        singular_values=rel,
+        ratio=float(ratio),
+    )
+
+
+def _orthonormal(vectors: np.ndarray) -> np.ndarray:
+    """An orthonormal basis (rows) of the span of ``vectors`` (k, 3)."""
+    if len(vectors) == 0:
+        return np.zeros((0, 3))
+    _, s, vt = np.linalg.svd(vectors, full_matrices=False)
+    return vt[s > 1e-9 * max(float(s[0]), 1e-300)]
