@@ -91,6 +91,7 @@ def test_local_processes_give_the_serial_result(library, parallel_small):
         workers.register_each(one, list(lib), serial[0].geometry, "lm")
 
 
+@pytest.mark.slow
 def test_progress_and_warnings_come_back_from_the_workers(library, parallel_small):
     lib, cache = library
     one = _touches(lib)[0]
