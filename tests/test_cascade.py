@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 
 import meshrec
 from meshrec import defaults
@@ -120,11 +121,14 @@ def test_split_stages_refuse_another_models_coarse(surfaces):
 
 
 def test_pruned_registration_refuses_a_rejected_model(surfaces):
-    touch = meshrec.simulate_touch(surfaces["ellipsoid"], rng=3).touch
+    # a touch on a small, tightly curved sphere: no site of the ellipsoid has (K, H) in
+    # reach (the site table's (K, H) ranges keep sites in a vanishing window)
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=0.02)
+    touch = meshrec.simulate_touch(ball, length=0.02, noise=1e-5, rng=3).touch
     model = surfaces["ellipsoid"]
-    coarse = register_coarse(touch, model, lookup_scale=1e-9)
-    if not coarse.rejected:  # the window shrunk to nothing keeps no vertex
-        pytest.fail("a vanishing lookup window should reject the model")
+    coarse = register_coarse(touch, model)
+    if not coarse.rejected:
+        pytest.fail("a touch curved 50 times more than the model should find no candidate")
     with pytest.raises(ValueError, match="coarse must have candidates"):
         pruned_registration(touch, model, coarse)
 
