@@ -40,8 +40,10 @@ def test_survivors_follow_the_log_likelihood_rule_worked_by_hand():
     # The threshold error: best conceivable log-likelihood exactly log_ratio below the
     # leaders' worst.
     worst = half_n * (leader * defaults.CASCADE_LEADER_GAIN / noise) ** 2
-    edge = defaults.CASCADE_SCREEN_GAIN * noise * np.sqrt(
-        (worst - defaults.JOINT_PRUNE_LOG_RATIO) / half_n
+    edge = (
+        defaults.CASCADE_SCREEN_GAIN
+        * noise
+        * np.sqrt((worst - defaults.JOINT_PRUNE_LOG_RATIO) / half_n)
     )
     keep = cascade_survivors([leader, 0.99 * edge, 1.01 * edge, None], n, noise)
     assert keep.tolist() == [True, True, False, False]
@@ -178,3 +180,15 @@ def test_the_cascade_gives_the_full_searchs_answers_on_many_touches(folder, tmp_
     for name in library.names:
         for seed in range(4):
             _same_answer(paper_touch(library[name], seed).touch, library)
+
+
+def test_the_cascade_on_the_first_of_several_touches_gives_the_full_searchs_answer(surfaces):
+    model = surfaces["ellipsoid"]
+    touches = [meshrec.simulate_touch(model, rng=s, transform=False).touch for s in (11, 12, 13)]
+    full = meshrec.recognize(touches, surfaces, cascade=False)
+    fast = meshrec.recognize(touches, surfaces, cascade=True)
+    assert fast.verdict == full.verdict
+    assert fast.best.model == full.best.model == "ellipsoid"
+    assert tuple(fast.plausible) == tuple(full.plausible)
+    assert fast.best.rms == pytest.approx(full.best.rms, rel=1e-3)
+    np.testing.assert_allclose(fast.touch_rms, full.touch_rms, rtol=1e-3)

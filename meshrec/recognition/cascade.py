@@ -192,6 +192,7 @@ def cascade_register(
     noise: float | None = None,
     method: str = defaults.SEARCH_METHOD,
     progress=None,
+    trace: bool = False,
 ) -> list[Registration]:
     """Register one touch on every model through the cascade.
 
@@ -207,6 +208,8 @@ def cascade_register(
         The local-search optimiser.
     progress : callable, optional
         ``progress(i, n, name)`` before each model's first stages.
+    trace : bool
+        Keep the stage trace of the survivors' full searches (the pruned have none).
 
     Returns
     -------
@@ -237,7 +240,7 @@ def cascade_register(
     out = []
     for model, c, k in zip(models, coarse, keep, strict=True):
         if c.rejected or k:
-            out.append(register_full(model, c, method=method))
+            out.append(register_full(model, c, method=method, trace=trace))
         else:
             out.append(pruned_registration(touch, model, c))
     return out

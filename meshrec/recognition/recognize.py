@@ -192,8 +192,9 @@ def recognize(
     scheduler : str or None
         The address of a Dask ``distributed`` scheduler to run them on (for this call).
     cascade : bool, optional
-        With one touch, run the local searches only on the models whose best conceivable
-        fit after the first stages is within reach of the leaders'
+        With one touch (and for the first of several), run the local searches only on
+        the models whose best conceivable fit after the first stages is within reach of
+        the leaders'
         (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
         refined. False: the full search on every model. Default ``defaults.CASCADE``.
         The cascade runs in this process: with ``workers`` or ``scheduler`` in use the
@@ -274,7 +275,9 @@ def recognize(
                 )
                 rec = _with_verdict(rec, {}, seen, method, run)
             else:
-                rec, fits = _rank_joint(touches, seen, method, progress, geometries, run)
+                rec, fits = _rank_joint(
+                    touches, seen, method, progress, geometries, run, bool(cascade)
+                )
                 rec = _with_verdict(rec, fits, seen, method, run)
             rec = _with_pose_freedom(rec, seen)
             _warn_coarse(rec, models)
@@ -510,7 +513,7 @@ def _ranked(rec: Recognition, results) -> Recognition:
     return dataclasses.replace(rec, ranking=tuple(results))
 
 
-def _rank_joint(touches, models, method, progress, geometries, run):
+def _rank_joint(touches, models, method, progress, geometries, run, cascade=False):
     """Several touches: every model fitted at one pose to all, the needed touches alone.
 
     Per model (independently of the others) the first touch is registered alone; its
@@ -540,9 +543,16 @@ def _rank_joint(touches, models, method, progress, geometries, run):
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    regs = run.register_each(
-        touches[0], models, geometries[0], method, trace=True, progress=progress
-    )
+    if cascade and run.mode == "serial":
+        # The first touch through the cascade: a model it prunes fits the first touch
+        # alone far worse than the leaders, and a joint fit is worse still.
+        regs = cascade_register(
+            touches[0], models, geometries[0], None, method, progress, trace=True
+        )
+    else:
+        regs = run.register_each(
+            touches[0], models, geometries[0], method, trace=True, progress=progress
+        )
     firsts = {
         model.name: first_touch_fit(touches, model, first)
         for model, first in zip(models, regs, strict=True)
