@@ -90,17 +90,18 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert any("widened" in w for w in rec.warnings)
 
 
-def test_warnings_raised_inside_are_kept_and_passed_on(surfaces, monkeypatch):
-    real = recognize_module.register
+@pytest.mark.parametrize(("cascade", "name"), [(False, "register"), (True, "cascade_register")])
+def test_warnings_raised_inside_are_kept_and_passed_on(surfaces, monkeypatch, cascade, name):
+    real = getattr(recognize_module, name)
 
     def noisy(*args, **kwargs):
         warnings.warn("a test warning from register", UserWarning, stacklevel=2)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(recognize_module, "register", noisy)
+    monkeypatch.setattr(recognize_module, name, noisy)
     sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
     with pytest.warns(UserWarning, match="a test warning from register"):
-        rec = meshrec.recognize(sim.touch, surfaces)
+        rec = meshrec.recognize(sim.touch, surfaces, cascade=cascade)
     assert rec.warnings.count("a test warning from register") == 1
 
 
