@@ -67,6 +67,10 @@ _WHERE = {
     "StageTimes": "meshrec.registration.register",
     "refine_pose": "meshrec.registration.register",
     "register": "meshrec.registration.register",
+    "CoarseRegistration": "meshrec.registration.register",
+    "register_coarse": "meshrec.registration.register",
+    "register_full": "meshrec.registration.register",
+    "cascade_register": "meshrec.recognition.cascade",
     "Screening": "meshrec.registration.screening",
     "screen_candidates": "meshrec.registration.screening",
     "Searches": "meshrec.registration.searching",
@@ -95,6 +99,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
     from meshrec.recognition.advice import TouchAdvice, next_touch
+    from meshrec.recognition.cascade import cascade_register
     from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
@@ -109,7 +114,15 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
         pose_hypotheses,
         refine_searches,
     )
-    from meshrec.registration.register import Registration, StageTimes, refine_pose, register
+    from meshrec.registration.register import (
+        CoarseRegistration,
+        Registration,
+        StageTimes,
+        refine_pose,
+        register,
+        register_coarse,
+        register_full,
+    )
     from meshrec.registration.screening import Screening, screen_candidates
     from meshrec.registration.searching import Searches, SearchRun, search_candidates
     from meshrec.registration.trace import RegistrationTrace
@@ -119,6 +132,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
 __all__ = [
     "PAPER_SURFACES",
     "VERDICTS",
+    "CoarseRegistration",
     "CommonPoint",
     "ContactCandidates",
     "IndexParams",
@@ -148,6 +162,7 @@ __all__ = [
     "WeightedPose",
     "__version__",
     "bundled_models_dir",
+    "cascade_register",
     "curvature_tolerance",
     "distinct_poses",
     "estimate_local_geometry",
@@ -165,6 +180,8 @@ __all__ = [
     "refine_pose",
     "refine_searches",
     "register",
+    "register_coarse",
+    "register_full",
     "register_touches",
     "screen_candidates",
     "search_candidates",

@@ -17,6 +17,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
+from meshrec.recognition import recognize as recognize_module
 from meshrec.recognition import workers as workers_module
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -90,17 +91,23 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert any("widened" in w for w in rec.warnings)
 
 
-def test_warnings_raised_inside_are_kept_and_passed_on(surfaces, monkeypatch):
-    real = workers_module.register
+@pytest.mark.parametrize(
+    ("cascade", "module", "name"),
+    [(False, workers_module, "register"), (True, recognize_module, "cascade_register")],
+)
+def test_warnings_raised_inside_are_kept_and_passed_on(
+    surfaces, monkeypatch, cascade, module, name
+):
+    real = getattr(module, name)
 
     def noisy(*args, **kwargs):
         warnings.warn("a test warning from register", UserWarning, stacklevel=2)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(workers_module, "register", noisy)
+    monkeypatch.setattr(module, name, noisy)
     sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
     with pytest.warns(UserWarning, match="a test warning from register"):
-        rec = meshrec.recognize(sim.touch, surfaces)
+        rec = meshrec.recognize(sim.touch, surfaces, cascade=cascade)
     assert rec.warnings.count("a test warning from register") == 1
 
 
