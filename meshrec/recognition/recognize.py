@@ -70,7 +70,8 @@ class Recognition:
         :func:`meshrec.recognition.scoring.decide`).
     plausible : tuple of str
         The models the data cannot rule out, best first: one when recognised, two or
-        more when ambiguous, none when unknown.
+        more when ambiguous (or one, when only it fits but its pose is free: see
+        ``pose_freedom``), none when unknown.
     noise : float
         The noise level estimated from the touch (standard deviation, data units).
     reason : str
