@@ -215,7 +215,7 @@ def test_recognition_with_the_tip_radius_finds_the_surface_contact(models, shape
     rec, tip_warnings = _recognise(sim.touch, library, probe_radius=TIP)
     # a touch on the tube's side leaves a slide along its axis free: the model is named
     # alone, the verdict ambiguous (its pose is not fixed)
-    free = rec.pose_freedom.free
+    free = rec.pose_freedom.unresolved
     assert rec.verdict == ("recognised" if free == 0 else "ambiguous")
     assert rec.plausible == (shape,)
     assert rec.best.model == shape
