@@ -354,12 +354,13 @@ LOOKUP_WIDEN_SCALE = 4.0
 # --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
 #: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian
 #: of the point-to-surface residuals along it is below this fraction of the largest (rows
-#: [n, (x - c) / L x n], L the points' RMS spread). Measured with the default simulated
-#: touches (3 seeds each): a face of a box and the side of a fine cylinder give 1e-12 and
-#: 1e-6, the bundled sphere 6e-5 to 1.4e-4 (three turns about its centre, truly free);
-#: the most nearly free motion of the bundled ellipsoid 1.4e-3 to 9e-3, of the paper's
-#: monkey saddle 9e-3 to 3e-2. A 32-section trimesh cylinder's facets pin the turn about
-#: its axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
+#: [n, (x - c) / L x n] at the points' closest points, L their RMS spread). Measured on
+#: default simulated touches recognised against the model alone (6 seeds each): a side
+#: touch of the bundled 80,000-face cylinder 2e-19 to 4e-7 (a slide along and a turn about
+#: the axis), the bundled sphere 3.5e-5 to 2.7e-4 (three turns about its centre); the most
+#: nearly free motion of the bundled ellipsoid 8.1e-4 to 9e-3, of the elliptic paraboloid
+#: 1.4e-3 to 4.3e-3 (fixed). A 32-section trimesh cylinder's facets pin the turn about its
+#: axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
 POSE_FREE_RATIO = 5e-4
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
@@ -371,19 +372,16 @@ POSE_TURN_FRACTION = 0.1
 POSE_EDGE_DEG = 20.0
 #: ... the step of that probe, as a fraction of the points' RMS spread.
 POSE_EDGE_STEP = 0.02
-#: A free motion of the pose is a symmetry of the model (a turn about a body of
-#: revolution's axis, about a sphere's centre: not an ambiguity of the pose) when the
-#: model's surface points (at most SYMMETRY_POINTS vertices and face centres), slid by
-#: SYMMETRY_SLIDE x the model's bounding-box diagonal or turned by SYMMETRY_TURN_RAD,
-#: land on its surface within an RMS of max(SYMMETRY_NOISE x the touches' noise,
-#: SYMMETRY_TOL x the diagonal). The turn is small enough that an axis estimated from
-#: noisy data (off by a few noise levels) still passes, large enough that a box turned
-#: about a face normal moves its corners by about 0.1 x its size.
-SYMMETRY_POINTS = 3000
-SYMMETRY_SLIDE = 0.1
-SYMMETRY_TURN_RAD = 0.2
-SYMMETRY_NOISE = 3.0
-SYMMETRY_TOL = 2e-3
+#: A free turn is a symmetry of the model (a cylinder's or a sphere's axis) when the model
+#: turned by this many degrees about it stays on itself (not a divisor of 360, so that
+#: discrete symmetries such as a 12-fluted knob's do not pass) ...
+POSE_SYMMETRY_TURN_DEG = 37.0
+#: ... a free slide when the model slid by this fraction of its diagonal does ...
+POSE_SYMMETRY_SLIDE = 0.1
+#: ... to within this fraction of its diagonal, or twice the mesh's own chord error
+#: (its resolution check), whichever is larger; at most 2000 vertices are checked.
+POSE_SYMMETRY_TOLERANCE = 2e-3
+POSE_SYMMETRY_VERTICES = 2000
 
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the
@@ -402,6 +400,28 @@ JOINT_KEEP_RATIO = 1.5
 #: touches: every further touch can only lower its likelihood (the explicit, order-free
 #: pruning step after the per-model work; e^-14 ~ 1e-6, far below any plausible set).
 JOINT_PRUNE_LOG_RATIO = -14.0
+
+#: The recognition's cascade (meshrec.recognition.cascade): with one touch, every model's
+#: first stages (lookup, phi, screening) run first, and the local searches only on the
+#: models whose best conceivable fit is within JOINT_PRUNE_LOG_RATIO of the leaders'.
+#: False: the full search on every model (the reference the cascade is tested against).
+CASCADE = True
+#: A model's rms is taken to be at least its least screened error over this. Measured on
+#: 135 (touch, model) pairs not rejected by the lookup (10 touches on a generated library
+#: of 20 shapes, bench.shape_set(20, seed=0); 12 each on the paper surfaces and objects,
+#: seeds 5-7): the least screened error over the full search's rms was at most 1.02 on the
+#: 38 pairs whose full-search log-likelihood was within JOINT_PRUNE_LOG_RATIO of the
+#: leader's (at most 2.39 on the far ones, which lose either way); 2 is a margin of 2.
+CASCADE_SCREEN_GAIN = 2.0
+#: The leaders' rms is taken to be at most the least screened error times this (the same
+#: pairs: the leader's rms over the least screened error was at most 1.82, median 1.29;
+#: the screening's error is a mean on the phi subsample, the rms is at least the mean).
+#: With these two gains the rule pruned 59 of the 135 pairs, none of the 38 close ones.
+CASCADE_LEADER_GAIN = 2.0
+#: Rigid-refinement steps on all the points for a pruned model's reported pose (as the
+#: screening's SCREEN_ITERATIONS): its error is an upper bound either way, and the full
+#: refinement of a far-off fit was a third of a pruned model's time.
+CASCADE_PRUNED_ITERATIONS = 3
 #: Local searches of a further touch registered alone (the first has LOCAL_SEARCHES): its
 #: poses only seed the joint refinement, where the other touches pin the pose down. Half,
 #: for time (three touches cost about twice one: reports/touches.md); not tuned further.

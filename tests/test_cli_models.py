@@ -101,7 +101,10 @@ def test_models_lists_a_folder_with_its_note_and_skipped_files(env, tmp_path):
     [
         (["models", "nowhere"], "--models nowhere: no such folder, nor a bundled set "),
         (["models", "bad_note"], "units note "),
-        (["recognize", "t.csv", "--models", "no_set"], "(bundled: objects, surfaces)"),
+        (
+            ["recognize", "t.csv", "--models", "no_set"],
+            "(bundled: objects, parts, primitives, surfaces)",
+        ),
         (["recognize", "t.csv", "--models", "bad_note"], "units must be one of mm, cm, m, in"),
         (["recognize", "t.csv", "--units", "ft"], "argument --units: invalid choice: 'ft'"),
     ],

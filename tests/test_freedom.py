@@ -13,7 +13,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
-from meshrec.recognition.freedom import pose_freedom
+from meshrec.recognition.freedom import pose_freedom, with_symmetries
 
 
 def _disc(rng, n=60):
@@ -133,3 +133,97 @@ def test_touch_on_an_ellipsoid_is_recognised_with_a_fixed_pose(box_and_ellipsoid
     assert rec.best.model == "ellipsoid"
     assert rec.pose_freedom.free == 0
     assert rec.verdict == "recognised"
+
+
+def _capped_cylinder_distance(radius, half_height):
+    """Unsigned distance to the surface of a closed circular cylinder along z (analytic)."""
+
+    def distance(p):
+        r = np.hypot(p[:, 0], p[:, 1])
+        dr, dz = r - radius, np.abs(p[:, 2]) - half_height
+        outside = np.hypot(np.maximum(dr, 0), np.maximum(dz, 0))
+        inside = np.minimum(np.maximum(dr, dz), 0)
+        return np.abs(outside + inside)
+
+    return distance
+
+
+def _cylinder_vertices(radius, half_height, rng):
+    """Points on the side and the caps of that cylinder."""
+    t = rng.uniform(0, 2 * np.pi, 400)
+    side = np.column_stack([radius * np.cos(t), radius * np.sin(t), rng.uniform(-1, 1, 400)])
+    side[:, 2] *= half_height
+    rr = radius * np.sqrt(rng.uniform(0, 1, 200))
+    cap = np.column_stack([rr * np.cos(t[:200]), rr * np.sin(t[:200]), np.full(200, half_height)])
+    return np.vstack([side, cap, cap * [1, 1, -1]])
+
+
+def test_turn_about_a_cylinders_axis_is_a_symmetry_and_the_slide_along_it_is_not():
+    rng = np.random.default_rng(4)
+    theta, z = 0.3 * rng.uniform(-1, 1, 60), 0.5 * rng.uniform(-1, 1, 60)
+    n = np.column_stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)])
+    x = 2.0 * n + np.column_stack([0 * z, 0 * z, z])
+    f = with_symmetries(
+        pose_freedom(x, n),
+        _cylinder_vertices(2.0, 3.0, rng),
+        _capped_cylinder_distance(2.0, 3.0),
+        1e-6,
+    )
+    assert f.slide_symmetric == (False,)
+    assert f.turn_symmetric == (True,)
+    assert f.unresolved == 1
+    assert "1 of them a symmetry" in f.description
+
+
+def test_turn_about_a_box_faces_normal_is_no_symmetry():
+    rng = np.random.default_rng(5)
+    x = np.column_stack([rng.uniform(-0.1, 0.1, (60, 2)), np.full(60, 0.5)])
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+
+    def distance(p):  # to the surface of the unit cube (analytic)
+        q = np.abs(p) - 0.5
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        return np.abs(outside + np.minimum(q.max(axis=1), 0.0))
+
+    f = with_symmetries(
+        pose_freedom(x, np.tile([0.0, 0.0, 1.0], (60, 1))),
+        trimesh.sample.sample_surface(box, 500, seed=0)[0],
+        distance,
+        1e-6,
+    )
+    assert f.slide_symmetric == (False, False)
+    assert f.turn_symmetric == (False,)
+    assert f.unresolved == 3
+
+
+@pytest.mark.parametrize(
+    ("vertices", "tolerance", "match"),
+    [(np.zeros((0, 3)), 1e-3, "vertices"), (np.zeros((5, 3)), 0.0, "tolerance")],
+)
+def test_with_symmetries_bad_input_raises(vertices, tolerance, match):
+    f = pose_freedom(np.eye(8, 3) + np.arange(8)[:, None], np.ones((8, 3)))
+    with pytest.raises(ValueError, match=match):
+        with_symmetries(f, vertices, lambda p: np.zeros(len(p)), tolerance)
+
+
+def test_touch_on_a_cylinders_side_is_named_with_a_free_slide(tmp_path):
+    """The bundled 80,000-face cylinder (mm): a side touch leaves the slide along the axis
+    free (another touch can fix it) and the turn about it (a symmetry)."""
+    folder = tmp_path / "lib"
+    folder.mkdir()
+    models = meshrec.bundled_models_dir("objects")
+    (folder / "cylinder_1.stl").write_bytes((models / "cylinder_1.stl").read_bytes())
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    t = meshrec.simulate_touch(
+        folder / "cylinder_1.stl", contact=[25.2, 0.0, 5.0], rng=3, length=20.0, noise=0.05
+    )
+    rec = meshrec.recognize(t.touch, lib)
+    f = rec.pose_freedom
+    assert rec.best.model == "cylinder_1"
+    assert 1 <= f.free <= 2
+    assert f.slides == 1
+    assert abs(f.slide_directions[0][2]) > 0.99  # along the axis
+    assert f.slide_symmetric == (False,)
+    assert all(f.turn_symmetric)
+    assert rec.verdict == "ambiguous"
+    assert rec.plausible == ("cylinder_1",)

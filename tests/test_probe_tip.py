@@ -345,3 +345,66 @@ def test_the_command_line_refuses_a_negative_radius(models, tmp_path, capsys):
     out = ["simulate", str(models["tube"].path), "-o", str(tmp_path / "x.csv")]
     assert main([*out, "--probe-radius", "nan"]) == 2
     assert "probe_radius must be finite" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_several_touches_with_a_tip(models):
+    library = list(models.values())
+    touches = [
+        _touch(models["sphere"], TIP, seed=seed, transform=False).touch for seed in (1, 2, 3)
+    ]
+    rec, caught = _recognise(touches, library, probe_radius=TIP)
+    assert rec.best.model == "sphere"
+    assert not caught
+    # every touch fits the offset sphere to the noise at the one joint pose
+    assert max(rec.touch_rms) < 1.3 * NOISE / math.sqrt(3)
+    assert np.linalg.norm(rec.best.T_model_touch[:3, 3]) < 0.01  # the model frame itself
+    rec, caught = _recognise(touches, library)
+    assert len(caught) == 1
+    said = float(str(caught[0].message).split("the data lie about ")[1].split()[0])
+    assert said == pytest.approx(TIP, rel=0.1)
+
+
+# ---------------------------------------------------------------------------- service
+def test_the_service_reads_the_radius_of_a_request_and_its_own(models):
+    from meshrec.app.commands_serve import Service, parse_body
+
+    sim = _touch(models["tube"], TIP, seed=1)
+    body = {"curves": [c.tolist() for c in sim.touch.curves], "probe_radius": TIP}
+    job = parse_body(json.dumps(body).encode(), advice=False)
+    assert job["touches"][0].probe_radius == TIP
+    service = Service(list(models.values()), None, probe_radius=TIP)
+    del body["probe_radius"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        doc = service.answer(parse_body(json.dumps(body).encode(), advice=False), advice=False)
+    assert doc["probe_radius"] == TIP
+    assert doc["best"] == "tube"
+    assert not any("ball tip" in w for w in doc["warnings"])
+
+
+def test_the_service_refuses_a_bad_radius(tmp_path):
+    import argparse
+
+    from meshrec.app.commands_serve import Service, run_serve
+
+    with pytest.raises(ValueError, match="--probe-radius must be >= 0"):
+        Service([], None, probe_radius=-1.0)
+    args = argparse.Namespace(
+        models=str(tmp_path), model_units=None, cache_dir=None, host="127.0.0.1", port=0,
+        probe_radius=float("nan"),
+    )
+    with pytest.raises(ValueError, match="--probe-radius must be finite"):
+        run_serve(args)
+
+
+def test_the_truth_file_records_the_tip(models, tmp_path):
+    sim = _touch(models["tube"], TIP, seed=1)
+    sim.write(tmp_path / "t.csv", tmp_path / "truth.json")
+    assert meshrec.read_truth(tmp_path / "truth.json").probe_radius == TIP
+    plain = _touch(models["tube"], 0.0, seed=1)
+    assert "probe_radius" not in plain.truth_dict()
+    doc = sim.truth_dict()
+    doc["probe_radius"] = -1.0
+    with pytest.raises(ValueError, match=r"truth\['probe_radius'\] must be >= 0"):
+        meshrec.Truth.from_dict(doc)

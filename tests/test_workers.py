@@ -76,7 +76,7 @@ def test_local_processes_give_the_serial_result(library, parallel_small):
     ).touch  # no model fits: the widened pass runs too
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        serial = [meshrec.recognize(t, lib) for t in (one, [one, two], far)]
+        serial = [meshrec.recognize(t, lib, cascade=False) for t in (one, [one, two], far)]
     with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
         assert workers.mode == "processes"
         assert workers.workers == 2
@@ -91,13 +91,14 @@ def test_local_processes_give_the_serial_result(library, parallel_small):
         workers.register_each(one, list(lib), serial[0].geometry, "lm")
 
 
+@pytest.mark.slow
 def test_progress_and_warnings_come_back_from_the_workers(library, parallel_small):
     lib, cache = library
     one = _touches(lib)[0]
     calls = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        serial = meshrec.recognize(one, lib)
+        serial = meshrec.recognize(one, lib, cascade=False)
     with (
         ModelWorkers(lib, workers=2, cache_dir=cache) as workers,
         warnings.catch_warnings(record=True) as again,
@@ -271,7 +272,7 @@ def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
     one, two = _touches(lib)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        serial = [meshrec.recognize(t, lib) for t in (one, [one, two])]
+        serial = [meshrec.recognize(t, lib, cascade=False) for t in (one, [one, two])]
         with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
             assert workers.mode == "dask"
             assert workers.workers == 2
@@ -281,3 +282,20 @@ def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
     for s, r in zip(serial, remote, strict=True):
         _same(s, r)
     _same(serial[0], once)
+
+
+@pytest.mark.slow
+def test_local_processes_see_the_models_through_the_probe_tip(library, parallel_small):
+    # the workers load the models plain: the tip radius must reach them
+    lib, cache = library
+    tip = 0.05
+    sim = meshrec.simulate_touch(lib["b"], rng=6, probe_radius=tip)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = meshrec.recognize(sim.touch, lib, probe_radius=tip, cascade=False)
+        with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
+            parallel = meshrec.recognize(sim.touch, lib, probe_radius=tip, workers=workers)
+    _same(serial, parallel)
+    assert parallel.best.model == "b"
+    # at the tip's offset: the data fit to about the noise, not the tip radius
+    assert parallel.best.rms < 0.2 * tip

@@ -110,10 +110,12 @@ def run(library, tips, trials, n_points, noise, log):
 
 def table(rows, tips, scale_mm, unit) -> list[str]:
     """The Markdown table of one library's rows."""
+    both = unit != "mm"
     out = [
-        f"| tip (mm) | tip ({unit}) | radius given | right | recognised & right | "
-        f"median contact error ({unit}) | undeclared-tip warnings | median s |",
-        "|---:|---:|:---|---:|---:|---:|---:|---:|",
+        "| tip (mm) | " + (f"tip ({unit}) | " if both else "") + "radius given | right | "
+        f"recognised & right | median contact error ({unit}) | undeclared-tip warnings | "
+        "median s |",
+        "|---:|" + ("---:|" if both else "") + ":---|---:|---:|---:|---:|---:|",
     ]
     for tip in tips:
         for told in (False, True) if tip > 0 else (False,):
@@ -125,7 +127,8 @@ def table(rows, tips, scale_mm, unit) -> list[str]:
             warned = sum(r[7] for r in sel)
             secs = statistics.median(r[8] for r in sel)
             out.append(
-                f"| {tip * scale_mm:g} | {tip:g} | {'yes' if told else 'no'} | "
+                f"| {tip * scale_mm:g} | " + (f"{tip:g} | " if both else "")
+                + f"{'yes' if told else 'no'} | "
                 f"{right}/{n} ({100 * right / n:.0f}%) | {rec}/{n} | {loc:.3g} | "
                 f"{warned}/{n} | {secs:.2f} |"
             )

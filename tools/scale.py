@@ -75,9 +75,9 @@ def measure(n: int, args) -> dict:
     library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
     first_load = time.perf_counter() - t0
     rss_before = _rss_mb()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     second = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
-    load = time.perf_counter() - t0
+    load, load_cpu = time.perf_counter() - t0, time.process_time() - c0
     rss_loaded = _rss_mb()  # both copies alive: the growth is one library's memory
     del library
     library = second
@@ -89,6 +89,7 @@ def measure(n: int, args) -> dict:
         "index_total_s": float(sum(build)),
         "first_load_s": first_load,
         "load_s": load,
+        "load_cpu_s": load_cpu,
         "rss_imports_mb": rss_imports - rss0,
         "rss_library_mb": rss_loaded - rss_before,
         "rss_total_mb": rss_loaded,
@@ -112,9 +113,10 @@ def measure(n: int, args) -> dict:
         true = names[(seed * 7919) % n]
         sim = paper_touch(library[true], seed=seed)
         row = {"seed": seed, "model": true}
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         rec = meshrec.recognize(sim.touch, library)
         row["serial_s"] = time.perf_counter() - t0
+        row["serial_cpu_s"] = time.process_time() - c0
         row["serial_best"] = rec.best.model if rec.best is not None else None
         row["verdict"] = rec.verdict
         if workers is not None:
@@ -153,24 +155,39 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}" if x < 100 else f"{x:.0f}"
 
 
+def _cpu(x: float | None) -> str:
+    """``"; CPU s"`` when measured (the process's CPU time: the wall time of an idle machine)."""
+    return "" if x is None else f"; {_fmt(x)}"
+
+
 def report(results: list[dict], args) -> str:
     """The Markdown report of all measured sizes."""
     out = [
         "## Scale: library size against index, load, memory and recognition time\n",
-        f"Command: `nice -n 10 python tools/scale.py {' '.join(sys.argv[1:])}` "
-        f"({os.cpu_count()} logical CPUs shared with other work; OMP_NUM_THREADS="
+        "Commands: "
+        + "; ".join(sorted({f"`nice -n 10 python tools/scale.py {r['command']}`" for r in results}))
+        + f" ({os.cpu_count()} logical CPUs shared with other work; OMP_NUM_THREADS="
         f"{os.environ.get('OMP_NUM_THREADS', 'unset')}). Blobs of "
         f"{results[0]['faces'] if results else '?'} faces (meshrec.bench.blobs); medians over "
         "the touches measured (column `touches`).\n",
-        "| models | index s/model | load s (warm) | library RSS MB | MB/model | touches "
-        "| recognition s (serial) | s/model/touch | recognition s (workers) | right "
+        "| models | index s/model | load s (warm; CPU s) | library RSS MB | MB/model | touches "
+        "| recognition s (serial; CPU s) | s/model/touch | recognition s (workers) | right "
         f"| ICP x{args.starts} s/recognition | ratio meshrec/ICP | ICP right "
         "| workers start s | load average |",
         "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in sorted(results, key=lambda r: r["models"]):
         n, t = r["models"], r["touches"]
+        if not t:  # measured without touches (--touches 0)
+            out.append(
+                f"| {n} | {r['index_median_s']:.3f} | {r['load_s']:.3f}{_cpu(r.get('load_cpu_s'))} "
+                f"| {r['rss_library_mb']:.0f} | {r['rss_library_mb'] / n:.2f} | 0 "
+                "| - | - | - | - | - | - | - "
+                f"| - | {r.get('load_average', 0):.1f} |"
+            )
+            continue
         serial = statistics.median(x["serial_s"] for x in t) if t else float("nan")
+        cpu = statistics.median(x["serial_cpu_s"] for x in t) if "serial_cpu_s" in t[0] else None
         right = sum(x["serial_best"] == x["model"] for x in t)
         if t and "workers_s" in t[0]:
             w = statistics.median(x["workers_s"] for x in t)
@@ -190,9 +207,9 @@ def report(results: list[dict], args) -> str:
         else:
             base = ratio = bright = "-"
         out.append(
-            f"| {n} | {r['index_median_s']:.3f} | {r['load_s']:.3f} "
+            f"| {n} | {r['index_median_s']:.3f} | {r['load_s']:.3f}{_cpu(r.get('load_cpu_s'))} "
             f"| {r['rss_library_mb']:.0f} | {r['rss_library_mb'] / n:.2f} | {len(t)} "
-            f"| {_fmt(serial)} | {serial / n:.3f} | {workers} | {right}/{len(t)} "
+            f"| {_fmt(serial)}{_cpu(cpu)} | {serial / n:.3f} | {workers} | {right}/{len(t)} "
             f"| {base} | {ratio} | {bright} "
             f"| {r.get('workers_start_s', float('nan')):.2f} | {r.get('load_average', 0):.1f} |"
         )
@@ -217,9 +234,29 @@ def plot(results: list[dict], path: Path, starts: int) -> None:
     ax.plot(n, med("serial_s"), "o-", label="meshrec, serial")
     if rows and "workers_s" in rows[0]["touches"][0]:
         ax.plot(n, med("workers_s"), "s-", label="meshrec, --workers")
+    cpu = [r for r in rows if "serial_cpu_s" in r["touches"][0]]
+    if cpu:
+        ax.plot(
+            [r["models"] for r in cpu],
+            [statistics.median(x["serial_cpu_s"] for x in r["touches"]) for r in cpu],
+            "o",
+            mfc="none",
+            label="meshrec, serial: CPU time",
+        )
     if rows and "baseline_s" in rows[0]["touches"][0]:
-        ax.plot(n, med("baseline_s"), "^--", label=f"Open3D multi-start ICP x{starts}")
-    ax.plot(n, [r["load_s"] for r in rows], "d:", label="library load (warm cache)")
+        ax.plot(
+            n,
+            med("baseline_s"),
+            "^--",
+            label=f"Open3D multi-start ICP x{starts} (per model x models)",
+        )
+    every = sorted(results, key=lambda r: r["models"])
+    ax.plot(
+        [r["models"] for r in every],
+        [r["load_s"] for r in every],
+        "d:",
+        label="library load (warm cache)",
+    )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("models in the library")
@@ -271,6 +308,7 @@ def main(argv=None) -> int:
         child = [sys.executable, __file__, "--measure", str(n), *(argv or sys.argv[1:])]
         proc = subprocess.run(child, stdout=subprocess.PIPE, text=True, check=True)
         done[str(n)] = json.loads(proc.stdout.strip().splitlines()[-1])
+        done[str(n)]["command"] = " ".join(argv or sys.argv[1:])
         store.parent.mkdir(parents=True, exist_ok=True)
         store.write_text(json.dumps(done, indent=1))
     results = list(done.values())

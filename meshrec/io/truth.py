@@ -7,6 +7,8 @@ search`` read it to draw the true curves and contact. The file is one JSON objec
      "T_touch_model": 4x4, "T_model_touch": 4x4, "contact_touch": [x, y, z],
      "noise": 0.001, "length": 0.61, "points": 61, "seed": 24}
 
+(plus ``"probe_radius": r`` for a touch simulated with a ball tip of radius r)
+
 where ``contact`` and ``normal`` are in model coordinates and ``T_model_touch`` maps touch
 points onto the model. Only ``contact`` and ``T_model_touch`` are required on reading.
 """
@@ -62,6 +64,8 @@ class Truth:
         Points per curve.
     seed : int or None
         The seed that reproduces the touch.
+    probe_radius : float or None
+        The radius of the simulated probe's ball tip, model units (None: a point probe).
 
     Raises
     ------
@@ -78,6 +82,7 @@ class Truth:
     length: float | None = None
     points: int | None = None
     seed: int | None = None
+    probe_radius: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.model, str):
@@ -103,7 +108,7 @@ class Truth:
             if not np.allclose(unit, normal, rtol=0.0, atol=1e-12):  # keep a unit one's bits
                 normal = unit
             object.__setattr__(self, "normal", _frozen(normal))
-        for key in ("noise", "length"):
+        for key in ("noise", "length", "probe_radius"):
             if getattr(self, key) is not None:
                 object.__setattr__(self, key, check_number(getattr(self, key), key, minimum=0.0))
         for key in ("points", "seed"):
@@ -141,6 +146,7 @@ class Truth:
             "length": self.length,
             "points": self.points,
             "seed": self.seed,
+            **({} if self.probe_radius is None else {"probe_radius": self.probe_radius}),
         }
 
     @classmethod
@@ -151,8 +157,8 @@ class Truth:
         ----------
         data : Mapping
             With at least ``contact`` and ``T_model_touch``; ``model``,
-            ``T_touch_model``, ``normal``, ``noise``, ``length``, ``points`` and ``seed``
-            are optional; the derived ``contact_touch`` is ignored.
+            ``T_touch_model``, ``normal``, ``noise``, ``length``, ``points``, ``seed`` and
+            ``probe_radius`` are optional; the derived ``contact_touch`` is ignored.
         where : str
             The name of ``data`` in messages.
 
@@ -192,6 +198,7 @@ class Truth:
             ("length", lambda v, n: check_number(v, n, minimum=0.0)),
             ("points", lambda v, n: check_int(v, n, minimum=0)),
             ("seed", lambda v, n: check_int(v, n, minimum=0)),
+            ("probe_radius", lambda v, n: check_number(v, n, minimum=0.0)),
         ):
             if data.get(key) is not None:
                 try:

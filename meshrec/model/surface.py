@@ -164,7 +164,23 @@ class AabbSurface:
             raise ValueError(f"points must have shape (n, 3), got {P.shape}")
         if not np.isfinite(P).all():
             raise ValueError("points must be finite, got NaN or inf")
-        sqr, face, closest = self._tree().squared_distance(self.mesh.vertices, self.mesh.faces, P)
+        V, F = self.mesh.vertices, self.mesh.faces
+        tree = self._tree()
+        if len(P) < _SORT_MIN_POINTS:
+            sqr, face, closest = tree.squared_distance(V, F, P)
+        else:
+            # Queried in Morton (Z-curve) order and put back: neighbouring queries then
+            # walk the same branches of the tree, in cache. Each point's answer is its own
+            # (the same bits in any order); measured on 20,000 scattered points on the
+            # 81,920-face ellipsoid: 1.7 us per point sorted against 4.5 us unsorted.
+            order = _morton_order(P)
+            sqr_s, face_s, closest_s = tree.squared_distance(V, F, P[order])
+            sqr = np.empty_like(sqr_s)
+            sqr[order] = sqr_s
+            face = np.empty_like(face_s)
+            face[order] = face_s
+            closest = np.empty_like(closest_s)
+            closest[order] = closest_s
         return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
 
     def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
@@ -265,6 +281,11 @@ class AabbSurface:
             fn = np.cross(b - a, c - a)
             normals[bad] = fn
             norm[bad] = np.linalg.norm(fn, axis=1)
+        if (norm > 0).all():
+            # The common case, without the error-state and NaN passes (a chart evaluation
+            # of the searches asks one point at a time: they were half its cost).
+            normals /= norm[:, None]
+            return normals
         with np.errstate(invalid="ignore", divide="ignore"):
             normals /= norm[:, None]
         return np.nan_to_num(normals, nan=0.0)
@@ -319,6 +340,29 @@ class AabbSurface:
         w[~t["ok"][f]] = 1.0 / 3.0
         w = np.clip(w, 0.0, None)
         return w / w.sum(axis=1, keepdims=True)
+
+
+#: Queries of at least this many points are sorted along a Morton curve first (the sort
+#: costs about what it saves below a few hundred points).
+_SORT_MIN_POINTS = 512
+
+#: Bits per axis of the Morton code (a 1024^3 grid over the queries' bounding box).
+_MORTON_BITS = 10
+
+
+def _morton_order(P: np.ndarray) -> np.ndarray:
+    """The permutation that sorts points ``(n, 3)`` along a Morton (Z-order) curve over
+    their bounding box (hand-written: numpy, scipy and trimesh have no Morton sort)."""
+    lo = P.min(axis=0)
+    span = float((P.max(axis=0) - lo).max())
+    scale = (2**_MORTON_BITS - 1) / span if span > 0 else 0.0
+    q = ((P - lo) * scale).astype(np.uint64)
+    code = np.zeros(len(P), dtype=np.uint64)
+    one = np.uint64(1)
+    for b in range(_MORTON_BITS):
+        for d in range(3):
+            code |= ((q[:, d] >> np.uint64(b)) & one) << np.uint64(3 * b + d)
+    return np.argsort(code, kind="stable")
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -17,14 +17,14 @@ rotation); a slide's direction and a turn's axis are reported in the model frame
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from meshrec import defaults
 from meshrec.io.checks import check_points
 
-__all__ = ["PoseFreedom", "pose_freedom"]
+__all__ = ["PoseFreedom", "pose_freedom", "with_symmetries"]
 
 
 @dataclass(frozen=True)
@@ -49,11 +49,10 @@ class PoseFreedom:
         The Jacobian's singular values relative to the largest, descending.
     ratio : float
         The threshold below which a singular value counted as free.
-    symmetries : tuple of str
-        Free motions that map the whole model onto itself (for instance a turn about a
-        body of revolution's axis), left out of ``free``, ``slides`` and ``turns``: along
-        them every pose is the same placement of the object
-        (:func:`meshrec.recognition.symmetry.without_symmetries`). Empty when not tested.
+    slide_symmetric, turn_symmetric : tuple of bool
+        Per slide and per turn, whether it is a symmetry of the whole model (a turn about
+        a cylinder's or a sphere's axis: no touch anywhere can fix it, and the contact is
+        known all the same), when checked (:func:`with_symmetries`); empty otherwise.
     """
 
     free: int
@@ -64,7 +63,13 @@ class PoseFreedom:
     turn_points: np.ndarray
     singular_values: np.ndarray
     ratio: float
-    symmetries: tuple[str, ...] = ()
+    slide_symmetric: tuple[bool, ...] = ()
+    turn_symmetric: tuple[bool, ...] = ()
+
+    @property
+    def unresolved(self) -> int:
+        """Free motions that are not symmetries of the model: another touch can fix them."""
+        return self.free - sum(self.slide_symmetric) - sum(self.turn_symmetric)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -75,18 +80,21 @@ class PoseFreedom:
     def description(self) -> str:
         """A short phrase: "fixed", or e.g. "free: 2 slides and 1 turn"."""
         if self.free == 0:
-            return "fixed up to the model's symmetry" if self.symmetries else "fixed"
+            return "fixed"
         words = []
         if self.slides:
             words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
         if self.turns:
             words.append(f"{self.turns} turn{'s' if self.turns > 1 else ''}")
-        return "free: " + " and ".join(words)
+        text = "free: " + " and ".join(words)
+        symmetric = sum(self.slide_symmetric) + sum(self.turn_symmetric)
+        if symmetric:
+            text += f" ({symmetric} of them a symmetry of the model)"
+        return text
 
     def to_dict(self) -> dict:
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
-        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``,
-        ``symmetries``."""
+        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -97,7 +105,9 @@ class PoseFreedom:
             "turn_axes": self.turn_axes.tolist(),
             "turn_points": self.turn_points.tolist(),
             "singular_values": self.singular_values.tolist(),
-            "symmetries": list(self.symmetries),
+            "slide_symmetric": list(self.slide_symmetric),
+            "turn_symmetric": list(self.turn_symmetric),
+            "unresolved": int(self.unresolved),
         }
 
     def __repr__(self) -> str:
@@ -183,6 +193,57 @@ def pose_freedom(
         singular_values=rel,
         ratio=float(ratio),
     )
+
+
+def with_symmetries(
+    freedom: PoseFreedom, vertices: np.ndarray, distance, tolerance: float
+) -> PoseFreedom:
+    """``freedom`` with each free slide and turn checked for a symmetry of the whole model.
+
+    A free motion is a symmetry when the model's vertices, moved by a finite step of it (a
+    turn of ``defaults.POSE_SYMMETRY_TURN_DEG`` about the turn's axis, a slide of
+    ``defaults.POSE_SYMMETRY_SLIDE`` times the model's diagonal), all stay within
+    ``tolerance`` of the model's surface.
+
+    Parameters
+    ----------
+    freedom : PoseFreedom
+    vertices : (V, 3) float
+        The model's vertices (a subsample will do).
+    distance : callable
+        ``distance(points (n, 3)) -> (n,)`` unsigned distances to the model's surface.
+    tolerance : float
+        The largest distance a symmetric motion may leave, model units (the mesh's own
+        facet error and more).
+
+    Returns
+    -------
+    PoseFreedom
+
+    Raises
+    ------
+    ValueError
+        If ``vertices`` is not (V, 3) finite with V >= 1 or ``tolerance`` is not positive.
+    """
+    v = check_points(vertices, "vertices", min_rows=1)
+    if not (isinstance(tolerance, (int, float)) and float(tolerance) > 0.0):
+        raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+    diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
+
+    def stays(moved: np.ndarray) -> bool:
+        return bool(np.max(np.asarray(distance(moved))) <= tolerance)
+
+    slides = tuple(
+        stays(v + defaults.POSE_SYMMETRY_SLIDE * diagonal * d) for d in freedom.slide_directions
+    )
+    angle = np.radians(defaults.POSE_SYMMETRY_TURN_DEG)
+    turns = []
+    for a, p in zip(freedom.turn_axes, freedom.turn_points, strict=True):
+        # Rodrigues' rotation about the axis (a, p).
+        k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        R = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+        turns.append(stays((v - p) @ R.T + p))
+    return replace(freedom, slide_symmetric=slides, turn_symmetric=tuple(turns))
 
 
 def _orthonormal(vectors: np.ndarray) -> np.ndarray:

@@ -90,8 +90,8 @@ def check_tip_fits(touches, geometries, radius: float) -> None:
         )
 
 
-def probe_offset(touch, model, T_model_touch, noise: float) -> tuple[float, float, float]:
-    """The tip radius that best explains the fit of a touch to a model, and its evidence.
+def probe_offset(points, model, T_model_touch, noise: float) -> tuple[float, float, float]:
+    """The tip radius that best explains the fit of touch data to a model, and its evidence.
 
     The data are refined rigidly onto the model's surface offset by R (from
     ``T_model_touch``) for R in ``[0, R_max]``, ``R_max`` the smaller of
@@ -102,9 +102,13 @@ def probe_offset(touch, model, T_model_touch, noise: float) -> tuple[float, floa
     convex parts and smaller on concave ones, the same R everywhere, which no rigid
     motion of the surface reproduces where the curvature is not flat.
 
+    With several touches at different places on the object the offset shows directly
+    (no one translation moves them all in), with one only through curvature, as above.
+
     Parameters
     ----------
-    touch : TouchData
+    points : (n, 3) float
+        The data points (every touch's, in their common frame).
     model : ModelIndex
         A plain model (no probe radius).
     T_model_touch : (4, 4) float
@@ -119,7 +123,7 @@ def probe_offset(touch, model, T_model_touch, noise: float) -> tuple[float, floa
     rms0, rms : float
         RMS distance at R = 0 and at ``radius``, both after rigid refinement.
     """
-    points = touch.points
+    points = np.asarray(points, dtype=np.float64)
     r_max = defaults.PROBE_OFFSET_MAX_FRACTION * min(_half_length(points), model.mesh.scale)
     cache: dict[float, float] = {}
 
@@ -163,9 +167,9 @@ def _half_length(points: np.ndarray) -> float:
 
 
 def warn_probe_offset(rec, models) -> None:
-    """Warn when a touch recognised without a radius looks taken with a ball tip.
+    """Warn when touches recognised without a radius look taken with a ball tip.
 
-    For the best model of a one-touch recognition, :func:`probe_offset` finds the tip
+    For the best model (every touch's points at its pose), :func:`probe_offset` finds the tip
     radius R that best explains the data; when the fit improves by more than the noise
     allows (``n (rms0^2 - rms^2) / noise^2 > defaults.PROBE_OFFSET_CHI2``, a chi-squared
     test of one added parameter) and R is more than ``defaults.PROBE_OFFSET_MIN_NOISE``
@@ -180,8 +184,9 @@ def warn_probe_offset(rec, models) -> None:
     if best is None or best.T_model_touch is None or not rec.noise > 0:
         return
     model = {m.name: m for m in models}[best.model]
-    radius, rms0, rms = probe_offset(rec.touch, model, best.T_model_touch, rec.noise)
-    n = rec.touch.n_points
+    points = np.vstack([t.points for t in rec.touches or (rec.touch,)])
+    radius, rms0, rms = probe_offset(points, model, best.T_model_touch, rec.noise)
+    n = len(points)
     gain = n * (rms0**2 - rms**2) / rec.noise**2
     if gain <= defaults.PROBE_OFFSET_CHI2 or radius <= defaults.PROBE_OFFSET_MIN_NOISE * rec.noise:
         return

@@ -17,8 +17,9 @@ from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.edges import warn_sharp_edges
-from meshrec.recognition.freedom import PoseFreedom, pose_freedom
+from meshrec.recognition.freedom import PoseFreedom, pose_freedom, with_symmetries
 from meshrec.recognition.joint import (
     check_touch_sizes,
     first_touch_fit,
@@ -38,7 +39,6 @@ from meshrec.recognition.scoring import (
     pose_weights,
     posterior,
 )
-from meshrec.recognition.symmetry import without_symmetries
 from meshrec.recognition.units import check_units
 from meshrec.recognition.workers import ModelWorkers
 from meshrec.registration.objective import residuals
@@ -100,9 +100,10 @@ class Recognition:
         The rigid motions the data leave free at the best model's reported pose
         (:func:`meshrec.recognition.freedom.pose_freedom`): a flat face leaves two slides
         and a turn, a cylinder's side a slide and a turn. None when no model was
-        registered. When any motion is free the verdict is never ``recognised``: with one
-        plausible model it is ``ambiguous`` with that model alone, and the reason says the
-        model is named but the pose is not fixed.
+        registered. When any motion is free that is not a symmetry of the model (a turn
+        about a cylinder's axis is; a slide along it is not) the verdict is never
+        ``recognised``: with one plausible model it is ``ambiguous`` with that model alone,
+        and the reason says the model is named but the pose is not fixed.
     """
 
     touch: TouchData
@@ -155,6 +156,7 @@ def recognize(
     probe_radius: float | None = None,
     workers=None,
     scheduler: str | None = None,
+    cascade: bool | None = None,
 ) -> Recognition:
     """Recognise which model of ``library`` the touch data came from, and where.
 
@@ -189,6 +191,14 @@ def recognize(
         The result is the same as a serial run's.
     scheduler : str or None
         The address of a Dask ``distributed`` scheduler to run them on (for this call).
+    cascade : bool, optional
+        With one touch, run the local searches only on the models whose best conceivable
+        fit after the first stages is within reach of the leaders'
+        (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
+        refined. False: the full search on every model. Default ``defaults.CASCADE``.
+        The cascade runs in this process: with ``workers`` or ``scheduler`` in use the
+        full search runs on every model (the result of a serial run with
+        ``cascade=False``).
 
     Returns
     -------
@@ -222,6 +232,8 @@ def recognize(
         (``probe_radius`` at least its smallest radius of curvature: no ball of that
         radius traces such data); or as :class:`~meshrec.recognition.workers.ModelWorkers`
         for ``workers`` and ``scheduler``.
+    TypeError
+        If ``cascade`` is not a bool or None.
     """
     t0 = time.perf_counter()
     touches = _touches(touch)
@@ -229,6 +241,10 @@ def recognize(
     check_choice(method, SEARCH_METHODS, "method")
     if progress is not None and not callable(progress):
         raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+    if cascade is None:
+        cascade = defaults.CASCADE
+    if not isinstance(cascade, (bool, np.bool_)):
+        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
     if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
         raise TypeError(
             f"library must be a ModelLibrary or an iterable of ModelIndex, got "
@@ -238,9 +254,11 @@ def recognize(
     for i, model in enumerate(models):
         check_instance(model, ModelIndex, f"library[{i}]")
     radius = touch_probe_radius(touches, probe_radius)
-    models = [probe_model(m, radius) for m in models]
+    # the models as the ball's centres see them (themselves for a point probe); the
+    # resolution warnings are the plain models' own (their cached resolution)
+    seen = [probe_model(m, radius) for m in models]
     caught: list = []
-    run, own = _runner(models, workers, scheduler)
+    run, own = _runner(seen, workers, scheduler)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -251,15 +269,17 @@ def recognize(
                 )
                 check_tip_fits(touches, geometries, radius)
             if len(touches) == 1:
-                rec = _rank(touches[0], models, method, progress, geometries[0], run)
-                rec = _with_verdict(rec, {}, models, method, run)
+                rec = _rank(
+                    touches[0], seen, method, progress, geometries[0], run, bool(cascade)
+                )
+                rec = _with_verdict(rec, {}, seen, method, run)
             else:
-                rec, fits = _rank_joint(touches, models, method, progress, geometries, run)
-                rec = _with_verdict(rec, fits, models, method, run)
-            rec = _with_pose_freedom(rec, models)
+                rec, fits = _rank_joint(touches, seen, method, progress, geometries, run)
+                rec = _with_verdict(rec, fits, seen, method, run)
+            rec = _with_pose_freedom(rec, seen)
             _warn_coarse(rec, models)
-            warn_sharp_edges(rec, models)
-            if radius == 0.0 and len(touches) == 1:
+            warn_sharp_edges(rec, seen)
+            if radius == 0.0:
                 warn_probe_offset(rec, models)
     finally:
         if own:
@@ -289,13 +309,16 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     model = {m.name: m for m in models}[best.model]
     points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
     y = apply_transform(best.T_model_touch, points)
-    normals, over = _pose_normals(model, y)
+    # The test is taken at the points' closest points on the surface: the data's noise
+    # across the surface would otherwise pin a turn about a cylinder's axis at the noise.
+    on_surface, normals, over = _pose_normals(model, y)
     if np.count_nonzero(~over) >= 6:
-        y, normals = y[~over], normals[~over]
-    noise = float(rec.noise) if np.isfinite(rec.noise) else 0.0
-    freedom = without_symmetries(model, pose_freedom(y, normals), noise)
+        on_surface, normals = on_surface[~over], normals[~over]
+    freedom = pose_freedom(on_surface, normals)
+    if freedom.free:
+        freedom = _with_model_symmetries(freedom, model)
     rec = dataclasses.replace(rec, pose_freedom=freedom)
-    if freedom.free == 0:
+    if freedom.unresolved == 0:
         return rec
     what = _freedom_phrase(freedom)
     if rec.verdict == "recognised":
@@ -315,17 +338,44 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     )
 
 
-def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The surface normal at each point's closest point, and which points lie at a crease.
+def _with_model_symmetries(freedom: PoseFreedom, model) -> PoseFreedom:
+    """Which free motions are symmetries of the whole model (see ``with_symmetries``)."""
+    V = model.mesh.vertices
+    step = max(1, len(V) // defaults.POSE_SYMMETRY_VERTICES)
+    diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
+    tolerance = max(
+        defaults.POSE_SYMMETRY_TOLERANCE * diagonal, 2.0 * float(model.resolution.chord_error)
+    )
+    return with_symmetries(
+        freedom, V[::step], lambda p: model.surface.closest_points(p)[0], tolerance
+    )
 
-    The normal is the residual's gradient (the smooth surface's normal). A point at a
-    crease, such as a flat touch that reaches a box's edge within the noise, has a normal
-    that jumps as it moves: a one-sided constraint (the touch may slide off the edge
-    inwards, not outwards) that the first-order test would count as a full one. Such points
-    (the normal turns by more than ``defaults.POSE_EDGE_DEG`` when the point moves by
-    ``defaults.POSE_EDGE_STEP`` times the points' spread along either tangent) are flagged,
-    to be left out of the test.
+
+def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's closest point on the surface, the normal there, and which points lie at
+    a crease.
+
+    The normal is the smooth normal field of the vertex normals (exactly horizontal on a
+    finely meshed cylinder's side, where the residual's gradient, that of the quadratic
+    patches, wobbles along the axis by the sagitta's slope). On a face with a vertex
+    normal more than ``defaults.POSE_EDGE_DEG`` off the face's own normal (a face
+    touching a crease vertex, whose normal averages the faces on both sides) the field
+    leans towards the crease: the face's normal is taken, and the point is flagged: it
+    lies within a triangle of a crease. A point at a crease, such as a flat touch that
+    reaches a box's edge within the noise, has a normal that jumps as it moves: a
+    one-sided constraint (the touch may slide off the edge inwards, not outwards) that the
+    first-order test would count as a full one.
+    Such points (the residual's gradient turns by more than ``defaults.POSE_EDGE_DEG``
+    when the point moves by ``defaults.POSE_EDGE_STEP`` times the points' spread along
+    either tangent) are flagged, to be left out of the test.
     """
+    cos_limit = np.cos(np.radians(defaults.POSE_EDGE_DEG))
+    _, closest, face = model.surface.closest_points(points)
+    smooth = model.surface.interpolated_normals(closest, face)
+    flat = model.mesh.face_normals[face]
+    corners = model.mesh.vertex_normals[model.mesh.faces[face]]  # (n, 3, 3)
+    leaning = np.einsum("ikj,ij->ik", corners, flat).min(axis=1) < cos_limit
+    normals = np.where(leaning[:, None], flat, smooth)
     grad = residuals(model, points).gradient
     unit = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
     spread = float(np.sqrt(((points - points.mean(axis=0)) ** 2).sum(axis=1).mean()))
@@ -335,24 +385,28 @@ def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t1 = np.cross(unit, helper)
     t1 /= np.linalg.norm(t1, axis=1)[:, None]
     t2 = np.cross(unit, t1)
-    cos_limit = np.cos(np.radians(defaults.POSE_EDGE_DEG))
     at_crease = np.zeros(len(points), dtype=bool)
     for t in (t1, -t1, t2, -t2):
         g = residuals(model, points + step * t).gradient
         g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
         at_crease |= np.einsum("ij,ij->i", g, unit) < cos_limit
-    return grad, at_crease
+    return closest, normals, at_crease | leaning
 
 
 def _freedom_phrase(freedom: PoseFreedom) -> str:
-    """E.g. "2 slides and 1 turn (about the axis (0, 0, 1) through (1, 2, 3))"."""
+    """E.g. "2 slides and 1 turn (axis [0. 0. 1.] through [1. 2. 3.])"."""
     parts = []
+    sym_s = freedom.slide_symmetric or (False,) * freedom.slides
+    sym_t = freedom.turn_symmetric or (False,) * freedom.turns
     if freedom.slides:
-        parts.append(f"{freedom.slides} slide{'s' if freedom.slides > 1 else ''}")
+        n_sym = sum(sym_s)
+        extra = f" ({n_sym} a symmetry of the model)" if n_sym else ""
+        parts.append(f"{freedom.slides} slide{'s' if freedom.slides > 1 else ''}{extra}")
     if freedom.turns:
         axes = "; ".join(
             f"axis {np.array2string(a, precision=3)} through {np.array2string(p, precision=4)}"
-            for a, p in zip(freedom.turn_axes, freedom.turn_points, strict=True)
+            + (", a symmetry of the model" if sym else "")
+            for a, p, sym in zip(freedom.turn_axes, freedom.turn_points, sym_t, strict=True)
         )
         parts.append(f"{freedom.turns} turn{'s' if freedom.turns > 1 else ''} ({axes})")
     return " and ".join(parts)
@@ -419,7 +473,7 @@ def _geometries(geometry, n: int) -> tuple:
     return tuple(geometry)
 
 
-def _rank(touch, library, method, progress, geometry, run) -> Recognition:
+def _rank(touch, library, method, progress, geometry, run, cascade=False) -> Recognition:
     """Register the touch on every model and rank them (the recognition proper)."""
     t0 = time.perf_counter()
     models = list(library)
@@ -430,7 +484,11 @@ def _rank(touch, library, method, progress, geometry, run) -> Recognition:
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    results = run.register_each(touch, models, geometry, method, progress=progress)
+    if cascade and run.mode == "serial":
+        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+        results = cascade_register(touch, models, geometry, noise, method, progress)
+    else:
+        results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,

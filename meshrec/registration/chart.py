@@ -13,6 +13,7 @@ a new chart at its current point after each solve.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,18 +57,31 @@ def tangent_frame(normal: np.ndarray, hint: np.ndarray | None = None) -> np.ndar
     -------
     (3, 3) float
     """
-    n = normal / np.linalg.norm(normal)
+    # Written out for 3-vectors (this runs at every chart evaluation of the searches):
+    # the same operations as np.linalg.norm and np.cross, so the same bits, at a quarter
+    # of the Python overhead (measured: tangent_frame 9% of a recognition's time before).
+    n = normal / _norm3(normal)
     d1 = None
     if hint is not None:
         d1 = hint - np.dot(hint, n) * n
-        if np.linalg.norm(d1) < 1e-8 * max(1.0, np.linalg.norm(hint)):
+        if _norm3(d1) < 1e-8 * max(1.0, _norm3(hint)):
             d1 = None
     if d1 is None:
         axis = np.eye(3)[int(np.argmin(np.abs(n)))]
         d1 = axis - np.dot(axis, n) * n
-    d1 = d1 / np.linalg.norm(d1)
-    d2 = np.cross(n, d1)
-    return np.column_stack([d1, d2, n])
+    d1 = d1 / _norm3(d1)
+    n0, n1, n2 = n.tolist()
+    e0, e1, e2 = d1.tolist()
+    out = np.empty((3, 3))
+    out[:, 0] = d1
+    out[:, 1] = (n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0)
+    out[:, 2] = n
+    return out
+
+
+def _norm3(x: np.ndarray) -> float:
+    """Euclidean norm of a (3,) vector (np.linalg.norm's own formula for 1-D input)."""
+    return math.sqrt(float(x.dot(x)))
 
 
 def rotation_z(phi) -> np.ndarray:
@@ -81,6 +95,11 @@ def rotation_z(phi) -> np.ndarray:
     -------
     (3, 3) float, or (k, 3, 3) float for an array of angles.
     """
+    if isinstance(phi, (float, int, np.floating)) or np.ndim(phi) == 0:
+        # One angle (the searches' case): the same ufuncs, without the stacking.
+        phi = np.float64(phi)
+        c, s = float(np.cos(phi)), float(np.sin(phi))
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     phi = np.asarray(phi, dtype=np.float64)
     c, s = np.cos(phi), np.sin(phi)
     zero, one = np.zeros_like(phi), np.ones_like(phi)

@@ -67,11 +67,17 @@ def residuals(model, points: np.ndarray) -> Residuals:
     diff = points - closest
     side = np.einsum("ij,ij->i", diff, normals)
     sign = np.where(side < 0.0, -1.0, 1.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        unit = diff / dist[:, None]
     tiny = dist <= 1e-12 * max(1.0, float(np.abs(points).max(initial=0.0)))
-    unit[tiny] = normals[tiny]
-    unit[~tiny] *= sign[~tiny, None]
+    if tiny.any():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = diff / dist[:, None]
+        unit[tiny] = normals[tiny]
+        unit[~tiny] *= sign[~tiny, None]
+    else:
+        # The common case without the masks (the same values: this runs at every
+        # evaluation of every search and refinement).
+        unit = diff / dist[:, None]
+        unit *= sign[:, None]
     # Distance to the smooth surface the vertex normals imply, not to the flat faces: the
     # height of that surface above the face is subtracted, and its slope along the face
     # (the closest point moves with the point) from the gradient.

@@ -18,9 +18,10 @@ import numpy as np
 from meshrec import defaults
 from meshrec.io.checks import check_instance, check_number, check_vector
 from meshrec.model.index import ModelIndex
+from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.chart import tangent_frame
 from meshrec.registration.lookup import ContactCandidates
-from meshrec.registration.refine import Refinement, refine_rigid
+from meshrec.registration.refine import Refinement
 from meshrec.registration.searching import Searches
 from meshrec.registration.transform import apply_transform, superposition
 
@@ -177,13 +178,16 @@ def refine_searches(
     if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
         raise ValueError(f"best must be a positive integer, got {best!r}")
     order = sorted(range(len(searches.runs)), key=lambda k: searches.runs[k].result.error)
-    out = []
-    for k in order[:best]:
+    chosen, starts = order[:best], []
+    for k in chosen:
         run = searches.runs[k]
         side = candidates.sides[candidates.side[run.candidate]]
-        T = superposition(side.point, side.frame, run.result.surface, run.result.phi)
-        out.append(RefinedSearch(run=k, refinement=refine_rigid(model, candidates.points, T)))
-    return tuple(out)
+        starts.append(superposition(side.point, side.frame, run.result.surface, run.result.phi))
+    if not starts:
+        return ()
+    # In lockstep (one distance query per round; the same results as refine_rigid each).
+    refined = refine_rigid_batch(model, candidates.points, np.array(starts))
+    return tuple(RefinedSearch(run=k, refinement=r) for k, r in zip(chosen, refined, strict=True))
 
 
 def pose_hypotheses(

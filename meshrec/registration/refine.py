@@ -59,6 +59,14 @@ class Refinement:
     iterations: int
 
 
+def _cross_into(J: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+    """Row-wise ``np.cross(a, b)`` of (n, 3) arrays into ``J[:, :3]`` (the same products,
+    without np.cross's axis handling and the stacking)."""
+    J[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    J[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    J[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+
 def refine_rigid(
     model,
     points: np.ndarray,
@@ -92,7 +100,9 @@ def refine_rigid(
     for it in range(1, max_iter + 1):  # noqa: B007 (it is reported)
         y = apply_transform(T, points)
         m = y.mean(axis=0)
-        J = np.hstack([np.cross(y - m, res.gradient), res.gradient])
+        J = np.empty((len(y), 6))
+        _cross_into(J, y - m, res.gradient)
+        J[:, 3:] = res.gradient
         # Columns scaled so rotation and translation are comparable.
         spread = float(np.sqrt(((y - m) ** 2).sum(axis=1).mean())) or 1.0
         J[:, :3] *= spread

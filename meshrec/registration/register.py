@@ -27,8 +27,8 @@ from meshrec.io.checks import (
 )
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
-from meshrec.registration.brackets import phi_brackets, refine_phis
-from meshrec.registration.lookup import lookup_candidates
+from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
+from meshrec.registration.lookup import ContactCandidates, lookup_candidates
 from meshrec.registration.poses import (
     PoseHypothesis,
     distinct_poses,
@@ -37,12 +37,21 @@ from meshrec.registration.poses import (
     refined_pose,
 )
 from meshrec.registration.refine import refine_rigid
-from meshrec.registration.screening import screen_candidates
+from meshrec.registration.screening import Screening, screen_candidates
 from meshrec.registration.search import SEARCH_METHODS
 from meshrec.registration.searching import search_candidates
 from meshrec.registration.trace import RegistrationTrace
 
-__all__ = ["Registration", "StageTimes", "refine_pose", "register", "touch_geometry"]
+__all__ = [
+    "CoarseRegistration",
+    "Registration",
+    "StageTimes",
+    "refine_pose",
+    "register",
+    "register_coarse",
+    "register_full",
+    "touch_geometry",
+]
 
 
 @dataclass(frozen=True)
@@ -115,6 +124,11 @@ class Registration:
         The distinct refined poses, least ``rms`` first; the first is the one reported.
     trace : RegistrationTrace or None
         Every stage's output, with ``register(..., trace=True)``; None otherwise.
+    pruned : bool
+        The recognition's cascade stopped this model after the screening (its best
+        conceivable fit was far worse than the leaders'): the pose is the best screened
+        candidate's, refined on all the points, not a local search's
+        (:mod:`meshrec.registration.cascade`).
     """
 
     model: str
@@ -136,6 +150,7 @@ class Registration:
     n_points: int = 0
     poses: tuple[PoseHypothesis, ...] = field(default=(), repr=False)
     trace: RegistrationTrace | None = field(default=None, repr=False)
+    pruned: bool = False
 
     @property
     def rejected(self) -> bool:
@@ -289,6 +304,83 @@ def register(
     check_instance(model, ModelIndex, "model")
     check_instance(geometry, LocalGeometry, "geometry", optional=True)
     _stage_inputs(method, max_candidates, searches, lookup_scale)
+    coarse = register_coarse(
+        touch, model, geometry, max_candidates=max_candidates, lookup_scale=lookup_scale
+    )
+    return register_full(model, coarse, method=method, searches=searches, trace=trace)
+
+
+@dataclass(frozen=True)
+class CoarseRegistration:
+    """The first stages of a registration (lookup, phi, screening) on one model.
+
+    Attributes
+    ----------
+    model : str
+        Model name.
+    candidates : ContactCandidates
+    brackets : PhiBrackets or None
+        None when the lookup found no candidate.
+    screening : Screening or None
+        None when the lookup found no candidate.
+    seconds : float
+        Wall time of these stages (with the local geometry when it was estimated here).
+    times : dict
+        Seconds per stage so far (``lookup``, ``phi``, ``screen``).
+    """
+
+    model: str
+    candidates: ContactCandidates = field(repr=False)
+    brackets: PhiBrackets | None = field(default=None, repr=False)
+    screening: Screening | None = field(default=None, repr=False)
+    seconds: float = 0.0
+    times: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def rejected(self) -> bool:
+        """True when the table lookup found no candidate on this model."""
+        return self.screening is None
+
+    @property
+    def screened_error(self) -> float | None:
+        """The least screened error (mean distance of the phi subsample after the
+        screening steps, model units); None when rejected."""
+        return None if self.screening is None else float(self.screening.errors[0])
+
+
+def register_coarse(
+    touch: TouchData,
+    model,
+    geometry: LocalGeometry | None = None,
+    max_candidates: int = defaults.MAX_CANDIDATES,
+    lookup_scale: float = 1.0,
+) -> CoarseRegistration:
+    """Stages 1 to 3 of :func:`register`: lookup, phi brackets, screening.
+
+    Parameters
+    ----------
+    touch, model, geometry, max_candidates, lookup_scale
+        As for :func:`register`.
+
+    Returns
+    -------
+    CoarseRegistration
+        Continue it with :func:`register_full`.
+
+    Raises
+    ------
+    TypeError
+        If ``touch`` is not a TouchData, ``model`` not a ModelIndex or ``geometry`` not a
+        LocalGeometry.
+    ValueError
+        If ``max_candidates`` is less than 1, ``lookup_scale`` is not a positive finite
+        number, or the local geometry cannot be estimated from the curves.
+    """
+    check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
+    check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    check_int(max_candidates, "max_candidates", minimum=1)
+    check_number(lookup_scale, "lookup_scale", positive=True)
     t_start = time.perf_counter()
     if geometry is None:
         geometry = touch_geometry(touch)
@@ -298,12 +390,67 @@ def register(
     )
     clock.lap("lookup")
     if len(cands) == 0:
-        stages = RegistrationTrace(candidates=cands)
-        return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
+        return CoarseRegistration(
+            model.name, cands, seconds=time.perf_counter() - t_start, times=clock.seconds
+        )
     brackets = phi_brackets(model, cands)
     clock.lap("phi")
     screening = screen_candidates(model, cands, brackets)
     clock.lap("screen")
+    return CoarseRegistration(
+        model.name,
+        cands,
+        brackets,
+        screening,
+        seconds=time.perf_counter() - t_start,
+        times=clock.seconds,
+    )
+
+
+def register_full(
+    model,
+    coarse: CoarseRegistration,
+    method: str = defaults.SEARCH_METHOD,
+    searches: int = defaults.LOCAL_SEARCHES,
+    trace: bool = False,
+) -> Registration:
+    """Stages 4 to 6 of :func:`register` from its first stages: the same Registration.
+
+    Parameters
+    ----------
+    model : ModelIndex
+        The model ``coarse`` was computed on.
+    coarse : CoarseRegistration
+        From :func:`register_coarse`.
+    method, searches, trace
+        As for :func:`register`.
+
+    Returns
+    -------
+    Registration
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a ModelIndex or ``coarse`` not a CoarseRegistration.
+    ValueError
+        If ``coarse`` is of another model, ``method`` is unknown or ``searches`` is less
+        than 1.
+    """
+    check_instance(model, ModelIndex, "model")
+    check_instance(coarse, CoarseRegistration, "coarse")
+    if coarse.model != model.name:
+        raise ValueError(f"coarse must be of model {model.name!r}, got {coarse.model!r}")
+    check_choice(method, SEARCH_METHODS, "method")
+    check_int(searches, "searches", minimum=1)
+    t_start = time.perf_counter()
+    clock = _Clock()
+    clock.seconds = dict(coarse.times)
+    cands = coarse.candidates
+    if coarse.rejected:
+        stages = RegistrationTrace(candidates=cands)
+        return _registration(model, stages, trace, coarse.seconds, clock)
+    brackets, screening = coarse.brackets, coarse.screening
     chosen = screening.candidates[:searches]
     phis = refine_phis(model, cands, brackets, chosen)
     clock.lap("phi")
@@ -314,7 +461,8 @@ def register(
     hypotheses = pose_hypotheses(model, cands, runs, refined)
     clock.lap("refine")
     stages = RegistrationTrace(cands, brackets, screening, phis, runs, refined, hypotheses)
-    return _registration(model, stages, trace, time.perf_counter() - t_start, clock)
+    seconds = coarse.seconds + time.perf_counter() - t_start
+    return _registration(model, stages, trace, seconds, clock)
 
 
 def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float, clock):

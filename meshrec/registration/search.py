@@ -134,8 +134,19 @@ class _ChartResiduals:
             moved = self.chart.at(x[0] + dx[0], x[1] + dx[1])
             dy = (_placed(self.local, moved, x[2]) - y) / self.step
             J[:, j] = np.einsum("ij,ij->i", g, dy)
-        J[:, 2] = np.einsum("ij,ij->i", g, np.cross(surface.normal, y - surface.point))
+        J[:, 2] = np.einsum("ij,ij->i", g, _cross_rows(surface.normal, y - surface.point))
         return J
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross(a, b)`` of a (3,) vector with (n, 3) rows, written out (the same
+    products, without np.cross's axis handling: measured 8% of a recognition's time)."""
+    a0, a1, a2 = a.tolist()
+    out = np.empty_like(b)
+    out[:, 0] = a1 * b[:, 2] - a2 * b[:, 1]
+    out[:, 1] = a2 * b[:, 0] - a0 * b[:, 2]
+    out[:, 2] = a0 * b[:, 1] - a1 * b[:, 0]
+    return out
 
 
 def _search_lm(model, local_points, start, phi0, scale) -> LocalSearch:

@@ -129,6 +129,7 @@ class SimulatedTouch:
             length=float(self.length),
             points=int(self.n_points),
             seed=self.seed,
+            probe_radius=self.probe_radius or None,
         )
 
     def truth_dict(self) -> dict:
@@ -140,7 +141,8 @@ class SimulatedTouch:
             Keys ``model`` (str), ``contact``, ``normal`` (model frame, lists of 3 floats),
             ``T_touch_model``, ``T_model_touch`` (4x4 nested lists), ``contact_touch``
             (list of 3 floats), ``noise``, ``length`` (float), ``points`` (int, points
-            per curve) and ``seed`` (int or None): :meth:`Truth.to_dict` of :attr:`truth`.
+            per curve), ``seed`` (int or None) and, with a ball tip, ``probe_radius``
+            (float): :meth:`Truth.to_dict` of :attr:`truth`.
         """
         return self.truth.to_dict()
 

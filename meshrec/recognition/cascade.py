@@ -1,0 +1,243 @@
+"""The recognition's cascade: every model's first stages, then the full search on the
+models that can still compete.
+
+A registration's first stages (lookup, phi, screening: :func:`register_coarse`) already
+place every candidate near its basin; the local searches and refinements after them
+(:func:`register_full`) cost about two thirds of the time and, on a model far worse than
+the best, only lower an error that loses anyway. The cascade runs the first stages on every
+model, keeps the models whose best conceivable fit is within reach of the leaders'
+(:func:`cascade_survivors`), runs the full search on those, and gives every other model the
+pose of its best screened candidate, a few refinement steps on all the points
+(:func:`pruned_registration`: the full search starts from that candidate too and keeps its
+best, so the pruned error is the full search's or larger, up to the optimisers' tolerance,
+and its probability only falls).
+
+The rule is the scores' own (:mod:`meshrec.recognition.scoring`): a model's
+log-likelihood is ``-n_eff rms^2 / (2 noise^2)``. Its best conceivable rms is its screened
+error divided by ``defaults.CASCADE_SCREEN_GAIN`` (the most the searches were measured to
+improve a screened error, with a margin); the leaders' rms is at most the least screened
+error times ``defaults.CASCADE_LEADER_GAIN``. A model whose best conceivable
+log-likelihood is below the leaders' worst by more than ``-defaults.JOINT_PRUNE_LOG_RATIO``
+(e^-14: far below any plausible set) is pruned. The rule looks at the set of screened
+errors only, so it does not depend on the order of the models.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from meshrec import defaults
+from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.checks import check_instance
+from meshrec.io.touch import TouchData
+from meshrec.model.index import ModelIndex
+from meshrec.recognition.scoring import effective_points, noise_estimate
+from meshrec.registration.poses import refined_pose
+from meshrec.registration.refine import refine_rigid
+from meshrec.registration.register import (
+    CoarseRegistration,
+    Registration,
+    StageTimes,
+    register_coarse,
+    register_full,
+    touch_geometry,
+)
+from meshrec.registration.transform import superposition
+
+__all__ = ["cascade_register", "cascade_survivors", "pruned_registration"]
+
+
+def cascade_survivors(
+    screened_errors: Sequence[float | None],
+    n_points: int,
+    noise: float,
+    screen_gain: float = defaults.CASCADE_SCREEN_GAIN,
+    leader_gain: float = defaults.CASCADE_LEADER_GAIN,
+    log_ratio: float = defaults.JOINT_PRUNE_LOG_RATIO,
+) -> np.ndarray:
+    """Which models the full search must still run on.
+
+    Parameters
+    ----------
+    screened_errors : sequence of float or None
+        Each model's least screened error (:attr:`CoarseRegistration.screened_error`);
+        None for a model the lookup rejected.
+    n_points : int
+        Data points of the touch.
+    noise : float
+        The touch's noise estimate (:func:`meshrec.recognition.scoring.noise_estimate`).
+    screen_gain : float
+        A model's rms is taken to be at least its screened error over this (>= 1).
+    leader_gain : float
+        The leaders' rms is taken to be at most the least screened error times this (>= 1).
+    log_ratio : float
+        Prune below this log-likelihood ratio to the leaders' (< 0).
+
+    Returns
+    -------
+    (m,) bool
+        True for the models to search fully (always the leaders); False for the pruned
+        and the rejected ones.
+
+    Raises
+    ------
+    ValueError
+        If ``n_points`` is not a positive integer, ``noise`` not positive and finite, a
+        gain below 1, ``log_ratio`` not negative or an error negative or not finite.
+    """
+    if not isinstance(n_points, (int, np.integer)) or isinstance(n_points, bool) or n_points < 1:
+        raise ValueError(f"n_points must be a positive integer, got {n_points!r}")
+    if not (np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be positive and finite, got {noise!r}")
+    for name, gain in (("screen_gain", screen_gain), ("leader_gain", leader_gain)):
+        if not (np.isfinite(gain) and gain >= 1):
+            raise ValueError(f"{name} must be a finite number >= 1, got {gain!r}")
+    if not (np.isfinite(log_ratio) and log_ratio < 0):
+        raise ValueError(f"log_ratio must be negative and finite, got {log_ratio!r}")
+    known = [e for e in screened_errors if e is not None]
+    for e in known:
+        if not (np.isfinite(e) and e >= 0):
+            raise ValueError(f"screened_errors must be finite and >= 0, got {e!r}")
+    keep = np.zeros(len(screened_errors), dtype=bool)
+    if not known:
+        return keep
+    half_n = 0.5 * effective_points(int(n_points))
+    leader_rms = min(known) * leader_gain
+    worst_leader = -half_n * (leader_rms / noise) ** 2
+    for i, e in enumerate(screened_errors):
+        if e is None:
+            continue
+        best_conceivable = -half_n * (e / screen_gain / noise) ** 2
+        keep[i] = best_conceivable - worst_leader >= log_ratio
+    return keep
+
+
+def pruned_registration(touch: TouchData, model, coarse: CoarseRegistration) -> Registration:
+    """The Registration of a model the cascade pruned: its best screened candidate's pose
+    refined on all the points by ``defaults.CASCADE_PRUNED_ITERATIONS`` steps of the
+    final rigid refinement of :func:`register_full`.
+
+    Parameters
+    ----------
+    touch : TouchData
+    model : ModelIndex
+        The model ``coarse`` was computed on.
+    coarse : CoarseRegistration
+        Not rejected.
+
+    Returns
+    -------
+    Registration
+        With ``pruned`` true, ``searches`` 0 and one pose.
+
+    Raises
+    ------
+    TypeError
+        If ``touch`` is not a TouchData, ``model`` not a ModelIndex or ``coarse`` not a
+        CoarseRegistration.
+    ValueError
+        If ``coarse`` is of another model or was rejected by the lookup.
+    """
+    check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
+    check_instance(coarse, CoarseRegistration, "coarse")
+    if coarse.model != model.name:
+        raise ValueError(f"coarse must be of model {model.name!r}, got {coarse.model!r}")
+    if coarse.rejected:
+        raise ValueError(f"coarse must have candidates, got none on model {model.name!r}")
+    t0 = time.perf_counter()
+    cands = coarse.candidates
+    i = int(coarse.screening.candidates[0])
+    side = cands.sides[cands.side[i]]
+    T0 = superposition(side.point, side.frame, cands.origins[i], float(coarse.screening.phis[0]))
+    # A few steps only (the screening's count): the pose of a model far worse than the
+    # leaders needs no polish, and a full refinement there took up to 30 iterations.
+    ref = refine_rigid(model, cands.points, T0, max_iter=defaults.CASCADE_PRUNED_ITERATIONS)
+    pose = refined_pose(model, ref, cands.geometry.point)
+    t_refine = time.perf_counter() - t0
+    times = dict(coarse.times)
+    return Registration(
+        model=model.name,
+        path=str(model.path),
+        error=pose.error,
+        contact=pose.contact,
+        normal=pose.normal,
+        phi=None,
+        T_model_touch=pose.T_model_touch,
+        candidates=len(cands),
+        raw_hits=cands.raw_hits,
+        searches=0,
+        seconds=coarse.seconds + t_refine,
+        times=StageTimes(
+            lookup=times.get("lookup", 0.0),
+            phi=times.get("phi", 0.0),
+            screen=times.get("screen", 0.0),
+            refine=t_refine,
+        ),
+        candidate_points=cands.model_points,
+        rms=pose.rms,
+        n_points=len(cands.points),
+        poses=(pose,),
+        pruned=True,
+    )
+
+
+def cascade_register(
+    touch: TouchData,
+    models: Sequence,
+    geometry: LocalGeometry | None = None,
+    noise: float | None = None,
+    method: str = defaults.SEARCH_METHOD,
+    progress=None,
+) -> list[Registration]:
+    """Register one touch on every model through the cascade.
+
+    Parameters
+    ----------
+    touch : TouchData
+    models : sequence of ModelIndex
+    geometry : LocalGeometry, optional
+        The touch's local geometry (estimated here otherwise).
+    noise : float, optional
+        The touch's noise estimate (default: from ``geometry``, as the scores take it).
+    method : {"lm", "steepest"}
+        The local-search optimiser.
+    progress : callable, optional
+        ``progress(i, n, name)`` before each model's first stages.
+
+    Returns
+    -------
+    list of Registration
+        One per model, in the order of ``models``: the full search's on the survivors,
+        :func:`pruned_registration`'s on the pruned.
+
+    Raises
+    ------
+    TypeError
+        If ``touch`` is not a TouchData, a model not a ModelIndex or ``geometry`` not a
+        LocalGeometry.
+    ValueError
+        As :func:`register_coarse` and :func:`register_full`.
+    """
+    check_instance(touch, TouchData, "touch")
+    check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    if geometry is None:
+        geometry = touch_geometry(touch)
+    if noise is None:
+        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+    coarse = []
+    for i, model in enumerate(models):
+        if progress is not None:
+            progress(i, len(models), model.name)
+        coarse.append(register_coarse(touch, model, geometry))
+    keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
+    out = []
+    for model, c, k in zip(models, coarse, keep, strict=True):
+        if c.rejected or k:
+            out.append(register_full(model, c, method=method))
+        else:
+            out.append(pruned_registration(touch, model, c))
+    return out

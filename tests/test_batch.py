@@ -1,0 +1,78 @@
+"""Rigid refinements in lockstep and large distance queries: each the same as its
+one-at-a-time twin (refine_rigid from each start, small queries), to the last bit."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import meshrec
+from meshrec.registration.batch import refine_rigid_batch
+from meshrec.registration.refine import refine_rigid
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    cache = tmp_path_factory.mktemp("cache")
+    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)["ellipsoid"]
+
+
+def _starts(sim, k, rng):
+    """``k`` transforms around the true pose: small and large rotations and shifts."""
+    out = []
+    for j in range(k):
+        D = np.eye(4)
+        D[:3, :3] = Rotation.from_rotvec(rng.normal(0, 0.05 * (1 + j), 3)).as_matrix()
+        D[:3, 3] = rng.normal(0, 0.02 * (1 + j), 3)
+        out.append(D @ sim.T_model_touch)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("max_iter", [0, 1, 3, 30])
+def test_each_start_is_refine_rigid_from_it(model, max_iter):
+    rng = np.random.default_rng(7)
+    sim = meshrec.simulate_touch(model, rng=2)
+    points = sim.touch.points[::3]
+    T0 = _starts(sim, 6, rng)
+    batch = refine_rigid_batch(model, points, T0, max_iter=max_iter)
+    assert len(batch) == len(T0)
+    for T, b in zip(T0, batch, strict=True):
+        one = refine_rigid(model, points, T, max_iter=max_iter)
+        np.testing.assert_array_equal(b.T_model_touch, one.T_model_touch)
+        assert (b.error, b.rms, b.iterations) == (one.error, one.rms, one.iterations)
+
+
+def test_no_start_gives_nothing(model):
+    assert refine_rigid_batch(model, np.zeros((4, 3)), np.zeros((0, 4, 4))) == []
+
+
+@pytest.mark.parametrize(
+    ("points", "T", "match"),
+    [
+        (np.zeros((4, 3)), np.eye(4), "T_model_touch"),
+        (np.zeros((4, 2)), np.eye(4)[None], "points"),
+        (np.zeros((0, 3)), np.eye(4)[None], "points"),
+    ],
+)
+def test_bad_shapes_are_refused(model, points, T, match):
+    with pytest.raises(ValueError, match=match):
+        refine_rigid_batch(model, points, T)
+
+
+def test_a_large_query_answers_each_point_as_small_ones_do(model):
+    # Large queries are sorted along a Morton curve inside closest_points: every point's
+    # answer must be the one it gets in small (unsorted) queries, to the last bit.
+    rng = np.random.default_rng(3)
+    V = model.mesh.vertices
+    P = V[rng.integers(0, len(V), 3000)] + rng.normal(0, 0.05, (3000, 3))
+    d, c, f = model.surface.closest_points(P)
+    parts = [model.surface.closest_points(P[i : i + 100]) for i in range(0, len(P), 100)]
+    np.testing.assert_array_equal(d, np.concatenate([p[0] for p in parts]))
+    np.testing.assert_array_equal(c, np.concatenate([p[1] for p in parts]))
+    np.testing.assert_array_equal(f, np.concatenate([p[2] for p in parts]))
+    # Coincident points (a degenerate bounding box) are answered too.
+    same = np.repeat(P[:1], 600, axis=0)
+    assert np.all(model.surface.closest_points(same)[0] == d[0])
