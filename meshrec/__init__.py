@@ -28,6 +28,7 @@ _WHERE = {
     "CommonPoint": "meshrec.contact.geometry",
     "LocalGeometry": "meshrec.contact.geometry",
     "RoughFitWarning": "meshrec.contact.geometry",
+    "SharpEdgeWarning": "meshrec.recognition.edges",
     "estimate_local_geometry": "meshrec.contact.geometry",
     "find_common_point": "meshrec.contact.geometry",
     "ProbeOffsetWarning": "meshrec.contact.probe",
@@ -100,6 +101,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.mesh import load_mesh
     from meshrec.recognition.advice import TouchAdvice, next_touch
     from meshrec.recognition.cascade import cascade_register
+    from meshrec.recognition.edges import SharpEdgeWarning
     from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.recognize import Recognition, recognize
@@ -153,6 +155,7 @@ __all__ = [
     "Screening",
     "SearchRun",
     "Searches",
+    "SharpEdgeWarning",
     "SimulatedTouch",
     "StageTimes",
     "TouchAdvice",

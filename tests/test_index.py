@@ -288,6 +288,7 @@ def test_lookup_matches_brute_force(ellipsoid_index):
 
 def test_ranges_hold_the_neighbourhood(ellipsoid_index):
     t = ellipsoid_index.curvature
+    assert t.valid.all()
     assert np.all(t.K_range[:, 0] <= t.K)
     assert np.all(t.K_range[:, 1] >= t.K)
     assert np.all(t.H_range[:, 0] <= t.H)

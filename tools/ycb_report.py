@@ -70,7 +70,7 @@ def main(argv=None) -> int:
         at_oracle = sum(
             t.right_error is not None and t.right_error <= 1.05 * t.oracle_error for t in rows
         )
-        emit(f"| {name} | {len(library[name].faces):,} | {ok}/{len(rows)} "
+        emit(f"| {name} | {len(library[name].mesh.faces):,} | {ok}/{len(rows)} "
              f"| {at_oracle}/{len(rows)} "
              f"| {np.median(loc):.2e} | {loc.max():.2e} | {np.median(right):.2e} "
              f"| {min(ratios) if ratios else float('nan'):.2f} | {rejected:.1f} "

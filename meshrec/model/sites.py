@@ -153,8 +153,11 @@ def sample_sites(
     n_smooth = len(pts)
     crease = np.zeros(len(points), dtype=bool)
     crease[n_smooth:] = True
-    K = np.concatenate([k1 * k2, np.zeros(len(cp))])
-    H = np.concatenate([0.5 * (k1 + k2), 0.5 * ck1])
+    # Curvatures in model units from here on (the ranges hold the table's own K and H).
+    k1_all = np.concatenate([k1, np.maximum(ck1, 0.0)]) / unit
+    k2_all = np.concatenate([k2, np.minimum(ck1, 0.0)]) / unit
+    K = k1_all * k2_all
+    H = 0.5 * (k1_all + k2_all)
     valid_all = np.concatenate([valid, np.ones(len(cp), dtype=bool)])
     K_range, H_range = _ranges(
         points, np.concatenate([patch, cpatch]), K, H, valid_all & ~crease, range_radius
@@ -166,14 +169,12 @@ def sample_sites(
     H_range[n_smooth:] = np.column_stack(
         [np.where(sign > 0, 0.0, -np.inf), np.where(sign > 0, np.inf, 0.0)]
     )
-    K_range[:n_smooth] /= unit**2
-    H_range[:n_smooth] /= unit
     return SiteSample(
         points=points * unit,
         normals=np.vstack([normals, cn]),
         normals2=np.vstack([normals, cn2]),
-        k1=np.concatenate([k1, np.maximum(ck1, 0.0)]) / unit,
-        k2=np.concatenate([k2, np.minimum(ck1, 0.0)]) / unit,
+        k1=k1_all,
+        k2=k2_all,
         dir1=np.vstack([dir1, cd1]),
         dir2=np.vstack([dir2, cd2]),
         valid=valid_all,
