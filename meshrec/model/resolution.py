@@ -2,7 +2,7 @@
 
 A touch is recognised from curves about ``defaults.SIM_LENGTH_FRACTION * sqrt(area)``
 long. :func:`mesh_resolution` measures a mesh against such a curve: how many vertices it
-crosses (the curvature table only knows the surface at the vertices), the chord error
+crosses (between them the surface is a guess from their normals), the chord error
 (how far the flat faces lie from the smooth surface their vertex normals imply, the
 surface :mod:`meshrec.model.surface` registers on), the curvature range, and how much of
 the surface is long thin slivers (CAD exports write a cylinder's side as full-height
