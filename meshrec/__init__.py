@@ -3,8 +3,8 @@
 The method is that of "Surface Recognition by Registering Data Curves from Touch", on
 meshes: the curves' local geometry (normal, Gaussian and mean curvature) is looked up in
 each model's curvature table (sites spread over its smooth surface) for candidate
-contacts, and a local search on
-surface charts finds the superposition with the least point-to-surface error.
+contacts, and a local search on surface charts finds the superposition with the least
+point-to-surface error.
 
 Typical use::
 
