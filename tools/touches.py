@@ -17,6 +17,12 @@ Writes a Markdown report and a picture of one active run (touches numbered on th
     .venv/bin/python tools/touches.py --sets 5 6 --loop-length 0.2 --loop-noise 0.004 \
         --out reports/touches.md --figure docs/images/active_loop.png
 
+Look-alikes that differ in one small feature (rods of one radius and length whose tips
+differ, ``meshrec.bench.EXTRA_FAMILIES``), where a touch at random rarely decides:
+
+    .venv/bin/python tools/touches.py --sets 7 --families tipped_rod --loop-length 0.2 \
+        --loop-noise 0.004 --out reports/touches_rods.md --figure docs/images/active_rods.png
+
 Uses only meshrec's public API.
 """
 
