@@ -338,3 +338,15 @@ def test_a_pipe_swapped_in_after_the_check_is_refused_without_blocking(tmp_path,
     monkeypatch.setattr(mesh_mod, "check_mesh_path", lambda p: Path(p))
     with pytest.raises(ValueError, match=r"ball\.stl' is not a regular file"):
         mesh_mod.read_mesh_file(path)
+
+
+def test_a_library_loaded_from_its_pack_sweeps_the_dead_writers_temporary_files(tmp_path):
+    models = _models(tmp_path / "models")
+    cache = tmp_path / "cache"
+    ModelLibrary.from_folder(models, cache_dir=cache)  # the entries and the pack
+    dead = _temp(cache, "ball-" + "0" * 64, _dead_pid())
+    alive = _temp(cache, "can-" + "0" * 64, os.getpid())  # a writer still running
+    lib = ModelLibrary.from_folder(models, cache_dir=cache)
+    assert all(m.from_cache for m in lib)
+    assert not dead.exists()
+    assert alive.exists()

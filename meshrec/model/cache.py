@@ -44,6 +44,7 @@ __all__ = [
     "file_sha256",
     "make_key",
     "refuse_model_folder",
+    "sweep_abandoned",
 ]
 
 #: Bumped when the layout of the cache files, or what is cached, changes (2: meshes are
@@ -279,6 +280,35 @@ def _safe_label(label: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", label)[:40].strip(".") or "entry"
 
 
+def sweep_abandoned(directory: str | os.PathLike) -> None:
+    """Remove the abandoned temporary files of killed writers from a cache folder.
+
+    A temporary file is abandoned when its writer (named in it: host and process id) is
+    this host's and no longer runs, or when it is older than ``_STALE_TEMP_SECONDS``.
+    Best effort: a folder that cannot be listed, or a file that cannot be removed (or was
+    removed by another sweeper), is left alone.
+
+    Parameters
+    ----------
+    directory : str or path
+        The cache folder (a missing one is left alone).
+    """
+    now = time.time()
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.name.endswith(".tmp"):
+            continue
+        try:
+            st = entry.stat(follow_symlinks=False)
+            if stat.S_ISREG(st.st_mode) and _abandoned(entry.name, st.st_mtime, now):
+                os.unlink(entry.path)
+        except OSError:
+            continue
+
+
 class ArrayCache:
     """A folder of ``.npz`` entries, each holding named arrays under one key.
 
@@ -426,28 +456,11 @@ class ArrayCache:
         return path
 
     def _sweep(self) -> None:
-        """Remove abandoned temporary files of killed writers (once per instance).
-
-        Best effort: a folder that cannot be listed, or a file that cannot be removed (or
-        was removed by another sweeper), is left alone.
-        """
+        """Remove abandoned temporary files of killed writers (once per instance)."""
         if self._swept:
             return
         self._swept = True
-        now = time.time()
-        try:
-            entries = list(os.scandir(self.directory))
-        except OSError:
-            return
-        for entry in entries:
-            if not entry.name.endswith(".tmp"):
-                continue
-            try:
-                st = entry.stat(follow_symlinks=False)
-                if stat.S_ISREG(st.st_mode) and _abandoned(entry.name, st.st_mtime, now):
-                    os.unlink(entry.path)
-            except OSError:
-                continue
+        sweep_abandoned(self.directory)
 
     @staticmethod
     def _warn(message: str) -> None:
