@@ -142,7 +142,7 @@ def test_a_model_without_candidates_is_rejected_with_its_reason(objects):
     cylinders = [objects["cylinder_1"], objects["cylinder_2"]]
     regs = [meshrec.register(sim.touch, m) for m in cylinders]
     assert all(r.rejected and r.candidates == 0 for r in regs)
-    assert all("no vertex with K=" in r.reason for r in regs)
+    assert all("no surface site with K=" in r.reason for r in regs)
     # recognize then looks harder (a widened lookup) before concluding: the object is
     # not among these models
     rec = meshrec.recognize(sim.touch, cylinders)

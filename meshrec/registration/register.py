@@ -486,7 +486,10 @@ def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float,
             candidates=0,
             raw_hits=0,
             searches=0,
-            reason=f"no vertex with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance",
+            reason=(
+                f"no surface site with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup "
+                "tolerance"
+            ),
             **common,
         )
     poses = distinct_poses(stages.hypotheses, float(cands.geometry.half_length))
