@@ -29,10 +29,10 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
 from meshrec.recognition.scoring import effective_points, fit_p_value
+from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import residuals
 from meshrec.registration.phi import bracket_minima
 from meshrec.registration.poses import PoseHypothesis, distinct_poses, refined_pose
-from meshrec.registration.refine import refine_rigid
 from meshrec.registration.register import Registration, StageTimes, register
 from meshrec.registration.transform import apply_transform, superposition
 
@@ -223,18 +223,18 @@ def joint_poses(
     # Only seeds that start near the best one: the others are far off (a wrong touch
     # placement) and would take many steps to reach what the best reaches in a few.
     order = np.argsort(start_rms, kind="stable")[:best]
-    coarse = [
-        refine_rigid(model, points[::stride], seeds[k], max_iter=defaults.JOINT_COARSE_ITER)
-        for k in order
-        if start_rms[k] <= start_ratio * start_rms[order[0]]
-    ]
+    # In lockstep, one closest-point query per round for all the seeds (the same results
+    # as refine_rigid from each: meshrec.registration.batch).
+    starts = [seeds[k] for k in order if start_rms[k] <= start_ratio * start_rms[order[0]]]
+    coarse = refine_rigid_batch(
+        model, points[::stride], np.array(starts), max_iter=defaults.JOINT_COARSE_ITER
+    )
     least = min(c.rms for c in coarse)
-    out = []
-    for c in coarse:
-        if c.rms > defaults.JOINT_KEEP_RATIO * least:
-            continue
-        ref = refine_rigid(model, points, c.T_model_touch)
-        out.append(refined_pose(model, ref, geometry.point))
+    kept = [c.T_model_touch for c in coarse if c.rms <= defaults.JOINT_KEEP_RATIO * least]
+    out = [
+        refined_pose(model, ref, geometry.point)
+        for ref in refine_rigid_batch(model, points, np.array(kept))
+    ]
     out.sort(key=lambda p: p.rms)
     return distinct_poses(out, float(geometry.half_length))
 
