@@ -342,35 +342,22 @@ class ModelWorkers:
         args = (geometry, method, float(lookup_scale), bool(trace))
         # the models may be seen through a probe tip (recognize's probe_radius)
         radii = [probe_radius_of(m) for m in models]
-        if self._client is not None:
-            futures = [
-                self._client.submit(
-                    _register_chunk,
-                    self._spec,
-                    [self._fingerprints[models[i].name] for i in c],
-                    touch,
-                    *args,
-                    [radii[i] for i in c],
-                    pure=False,
-                )
-                for c in chunks
-            ]
-            results = [f.result() for f in futures]
-        else:
-            futures = [
-                self._pool.submit(
-                    _register_chunk,
-                    self._spec,
-                    [self._fingerprints[models[i].name] for i in c],
-                    touch,
-                    *args,
-                    [radii[i] for i in c],
-                )
-                for c in chunks
-            ]
-            results = []
-            for f in futures:
-                results.append(f.result())
+        # Dask's submit re-runs nothing by default (pure=False: every call is new work)
+        extra = {"pure": False} if self._client is not None else {}
+        executor = self._client if self._client is not None else self._pool
+        futures = [
+            executor.submit(
+                _register_chunk,
+                self._spec,
+                [self._fingerprints[models[i].name] for i in c],
+                touch,
+                *args,
+                [radii[i] for i in c],
+                **extra,
+            )
+            for c in chunks
+        ]
+        results = [f.result() for f in futures]
         out = [None] * n
         done = 0
         for c, res in zip(chunks, results, strict=True):
