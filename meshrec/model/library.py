@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from meshrec.io.checks import check_instance
-from meshrec.model.cache import default_cache_dir, refuse_model_folder, sweep_abandoned
+from meshrec.model.cache import default_cache_dir, refuse_model_folder
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
 
@@ -175,8 +175,6 @@ class ModelLibrary:
         if digests is not None and not force:
             packed = pack.load_pack(files, digests, params or IndexParams(), cache_dir)
         if packed is not None:
-            # No entry is read or written: the killed writers' leftovers go here
-            sweep_abandoned(cache_dir if cache_dir is not None else default_cache_dir())
             if progress is not None:  # the pack loads at once; report its models in turn
                 for i, path in enumerate(files):
                     progress(i, len(files), path.stem)

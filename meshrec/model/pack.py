@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from meshrec._version import __version__
-from meshrec.model.cache import CacheWarning, default_cache_dir
+from meshrec.model.cache import CacheWarning, default_cache_dir, sweep_abandoned
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import check_mesh_path, read_mesh_file
 from meshrec.model.record import RECORD_VERSION, IndexRecord
@@ -288,7 +288,8 @@ def load_pack(
     (models, skipped) or None
         The models in the order they were indexed (arrays memory-mapped, read-only) and the
         files that were skipped with why; None if there is no pack for this key (silently)
-        or it is unusable (with a :class:`CacheWarning`).
+        or it is unusable (with a :class:`CacheWarning`). A pack that serves also sweeps
+        the cache's abandoned temporary files (:func:`meshrec.model.cache.sweep_abandoned`).
 
     Raises
     ------
@@ -311,6 +312,9 @@ def load_pack(
         )
         shutil.rmtree(folder, ignore_errors=True)
         return None
+    # No per-model entry is read or written when the pack serves: the killed writers'
+    # temporary files in the cache are swept here instead.
+    sweep_abandoned(cache_dir if cache_dir is not None else default_cache_dir())
     seconds = (time.perf_counter() - t0) / max(len(models), 1)
     for m in models:
         object.__setattr__(m, "load_seconds", seconds)
