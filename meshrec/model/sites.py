@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from meshrec import defaults
 from meshrec.model.mesh import MeshData
+from meshrec.model.surface import corner_normals
 from meshrec.model.thinning import poisson_disk_thin
 
 __all__ = ["SiteSample", "sample_sites"]
@@ -142,7 +143,10 @@ def sample_sites(
     pts, face = pts[keep], np.asarray(face, dtype=np.int64)[keep]
     ok = mesh.face_normals[face].any(axis=1) if len(face) else np.zeros(0, bool)
     pts, face = pts[ok], face[ok]
-    corner = igl.per_corner_normals(V, F, float(crease_angle_deg)).reshape(-1, 3, 3)
+    if crease_angle_deg == defaults.SITE_CREASE_ANGLE_DEG:
+        corner = corner_normals(mesh)  # the same, computed once per mesh
+    else:
+        corner = igl.per_corner_normals(V, F, float(crease_angle_deg)).reshape(-1, 3, 3)
     w = _barycentric(V, F, pts, face)
     normals = _unit(np.einsum("ni,nij->nj", w, corner[face]))
     lift = surface.smooth_offsets(pts * unit, face) / unit
@@ -231,7 +235,8 @@ def _close_pairs(points, patch, radius):
     their distances."""
     if len(points) < 2 or radius <= 0:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
-    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
+    tree = cKDTree(points, balanced_tree=False, compact_nodes=False)
+    pairs = tree.query_pairs(radius, output_type="ndarray")
     pairs = pairs[patch[pairs[:, 0]] == patch[pairs[:, 1]]]
     dist = np.linalg.norm(points[pairs[:, 1]] - points[pairs[:, 0]], axis=1)
     return pairs, dist

@@ -73,7 +73,9 @@ def poisson_disk_thin(
     rank[rng.permutation(n)] = np.arange(n)
     if n < 2 or radius == 0:
         return np.ones(n, dtype=bool)
-    pairs = cKDTree(P).query_pairs(radius, output_type="ndarray")
+    # Unbalanced and uncompacted: built in half the time, queried as fast here.
+    tree = cKDTree(P, balanced_tree=False, compact_nodes=False)
+    pairs = tree.query_pairs(radius, output_type="ndarray")
     # Each pair as (first in the order, later in the order).
     swap = rank[pairs[:, 0]] > rank[pairs[:, 1]]
     pairs[swap] = pairs[swap][:, ::-1]
