@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import igl
 import numpy as np
 import trimesh
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
@@ -260,34 +260,35 @@ def _shape_operator(points, normals, pairs, dist, radius):
     valid = np.zeros(n, dtype=bool)
     if n < 3:
         return k1, k2, d1, d2, valid
-    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
     # Tangent basis at every site.
     t1 = np.cross(normals, np.where(np.abs(normals[:, [0]]) < 0.9, [1.0, 0, 0], [0, 1.0, 0]))
     t1 = _unit(t1)
     t2 = np.cross(normals, t1)
-    dp = points[j] - points[i]
-    dn = normals[j] - normals[i]
-    ti1, ti2 = t1[i], t2[i]
-    x0, x1 = np.einsum("ij,ij->i", dp, ti1), np.einsum("ij,ij->i", dp, ti2)
-    y0, y1 = np.einsum("ij,ij->i", dn, ti1), np.einsum("ij,ij->i", dn, ti2)
+    # The normal equations per site, A = sum w x x^T and B = sum w y x^T with x and y the
+    # neighbours' dp and dn in the site's tangent basis T (3 x 2): A = T^T (sum w dp dp^T) T
+    # and B = T^T (sum w dn dp^T) T. Both 3 x 3 sums are the same seen from either end of
+    # a pair (dp and dn both change sign), so they are summed once per pair.
+    a, b = pairs[:, 0], pairs[:, 1]
+    dp = points[b] - points[a]
+    dn = normals[b] - normals[a]
     # Weights: closer neighbours count more (a smooth fall-off to the ball's edge).
-    wgt = 1.0 - (np.concatenate([dist, dist]) / radius) ** 2
-
-    def total(v):
-        return np.bincount(i, weights=wgt * v, minlength=n)
-
-    # The normal equations per site: A = sum w x x^T, B = sum w y x^T (2 x 2 each).
-    a00, a01, a11 = total(x0 * x0), total(x0 * x1), total(x1 * x1)
-    A = np.stack([np.stack([a00, a01], -1), np.stack([a01, a11], -1)], 1)
-    B = np.stack(
-        [
-            np.stack([total(y0 * x0), total(y0 * x1)], -1),
-            np.stack([total(y1 * x0), total(y1 * x1)], -1),
-        ],
-        1,
-    )
-    count = np.bincount(i, minlength=n)
+    wgt = 1.0 - (dist / radius) ** 2
+    ends = np.concatenate([a, b])
+    wdp = wgt[:, None] * dp
+    M = np.empty((len(pairs), 3, 6))
+    M[:, :, :3] = wdp[:, :, None] * dp[:, None, :]
+    M[:, :, 3:] = wdp[:, :, None] * dn[:, None, :]
+    # Summed onto both ends of every pair: the (site x pair) incidence matrix times M.
+    m = len(pairs)
+    incidence = csr_matrix((np.ones(2 * m), (ends, np.tile(np.arange(m), 2))), shape=(n, m))
+    S3 = np.asarray(incidence @ M.reshape(m, 18)).reshape(n, 3, 6)
+    T = np.stack([t1, t2], axis=2)  # (n, 3, 2)
+    Tt = np.swapaxes(T, 1, 2)
+    A = Tt @ S3[:, :, :3] @ T
+    # sum w y x^T = T^T (sum w dn dp^T) T, and S3[:, :, 3:] holds sum w dp dn^T.
+    B = Tt @ np.swapaxes(S3[:, :, 3:], 1, 2) @ T
+    a00, a01, a11 = A[:, 0, 0], A[:, 0, 1], A[:, 1, 1]
+    count = np.bincount(ends, minlength=n)
     det = a00 * a11 - a01**2
     tr = a00 + a11
     good = (count >= 3) & (det > 1e-3 * tr**2) & (normals.any(axis=1))
