@@ -52,7 +52,8 @@ def _sphere_samples(n: int, seed: int) -> np.ndarray:
 @pytest.mark.parametrize("seed", [0, 7])
 def test_thinning_is_dart_throwing_with_its_guarantees(points, radius, seed):
     keep = poisson_disk_thin(points, radius, rng=seed)
-    assert keep.dtype == bool and keep.shape == (len(points),)
+    assert keep.dtype == bool
+    assert keep.shape == (len(points),)
     assert np.array_equal(keep, _dart_throwing(points, radius, seed))
     kept = points[keep]
     # Spacing: no two kept points within the radius.

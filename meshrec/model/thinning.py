@@ -11,7 +11,7 @@ independent set of the pairs' graph in the random order, which is exactly the se
 result; random priorities need a handful of rounds.
 
 Written here because trimesh's ``remove_close`` (one point of every close pair dropped,
-the one with more close pairs) over-culls, leaves holes up to 2.7 radii wide and, on the
+the one with more close pairs) over-culls, leaves holes up to 2.65 radii wide and, on the
 6-times oversampled candidates it needs to keep enough points, took 60% of an index
 build; dart throwing needs far fewer candidates.
 """
