@@ -12,8 +12,9 @@ measures, each set in a fresh process (imports and a warm-up build done before t
   ``subdivide_to_size`` to about each of ``--scan-faces`` faces (the edge length found
   by bisection; the subdivided triangles add faces, not detail): the same times, the
   peak resident memory growth of the build (``ru_maxrss`` against the resident memory
-  before it), the memory the index keeps (resident growth after the build) and the cache
-  entry's size on disk.
+  before it), the cache entry's size on disk, and from a second, untimed build under
+  ``tracemalloc`` (numpy's and Python's allocations, not libigl's) the peak during the
+  build and the memory the built index holds.
 
 ``--baseline-src DIR`` also runs every measurement with ``PYTHONPATH=DIR`` (for example
 ``git archive <commit> meshrec | tar -x -C DIR``), interleaved with the current code on
@@ -24,6 +25,7 @@ the same inputs, and reports the ratios. Prints a Markdown table and writes it t
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import resource
@@ -32,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -127,8 +130,19 @@ def measure(kind: str, args) -> dict:
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     # The peak over the process's life: the build's own only if it passed the warm-up's.
     r["peak_rss_growth_mb"] = peak - rss0 if peak > peak0 else float("nan")
-    r["kept_rss_mb"] = _rss_mb() - rss0
     r.pop("_index")
+    # Again with tracemalloc (numpy's and Python's allocations; not libigl's), untimed:
+    # the peak during the build, and what the built index holds.
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    again = _build(path, work / "traced")
+    peak_traced = tracemalloc.get_traced_memory()[1]
+    gc.collect()  # trimesh's meshes hold reference cycles: garbage, not the index
+    current = tracemalloc.get_traced_memory()[0]
+    tracemalloc.stop()
+    r["traced_peak_mb"] = (peak_traced - base) / 2**20
+    r["traced_kept_mb"] = (current - base) / 2**20
+    del again
     return {"kind": kind, "rows": [r], "meshrec": meshrec.__file__}
 
 
@@ -153,9 +167,9 @@ def report(results: dict, args) -> str:
         "(`time.process_time`) per model, medians over the models of a set; one build per "
         "scan. Load average at the end of each set in the last column.\n",
         "| code | set | faces | sites | models | CPU s/model (median) | wall s/model | "
-        "CPU s: mesh, curvature, cache, trees | peak RSS growth MB | index kept MB | "
-        "cache MB | load avg |",
-        "|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|",
+        "CPU s: mesh, curvature, cache, trees | peak RSS growth MB | traced peak MB | "
+        "index holds MB | cache MB | load avg |",
+        "|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|",
     ]
     for code, sets in results.items():
         for out in sets:
@@ -165,13 +179,15 @@ def report(results: dict, args) -> str:
                 for s in STAGES
             )
             peak = rows[0].get("peak_rss_growth_mb")
-            kept = rows[0].get("kept_rss_mb")
+            traced = rows[0].get("traced_peak_mb")
+            kept = rows[0].get("traced_kept_mb")
             lines.append(
                 f"| {code} | {out['kind']} | {int(_median(rows, 'faces'))} "
                 f"| {int(_median(rows, 'sites'))} | {len(rows)} "
                 f"| {_median(rows, 'cpu_s'):.3f} | {_median(rows, 'wall_s'):.3f} | {stages} "
                 f"| {'-' if peak is None else f'{peak:.0f}'} "
-                f"| {'-' if kept is None else f'{kept:.0f}'} "
+                f"| {'-' if traced is None else f'{traced:.0f}'} "
+                f"| {'-' if kept is None else f'{kept:.1f}'} "
                 f"| {_median(rows, 'cache_mb'):.2f} | {out['load_average']:.1f} |"
             )
     if "before" in results:
