@@ -166,8 +166,16 @@ SEARCH_METHOD = "lm"
 CURVATURE_SCALE_FRACTION = 0.04
 #: Distance asked between curvature sites (Poisson-disk sampling of the surface), as a
 #: fraction of sqrt(surface area): about 4,000-5,000 sites per model (the sampling keeps
-#: about 0.3 / spacing^2 per unit area), 0.4-0.6 s to build on a small primitive.
+#: about 0.27 / spacing^2 per unit area). Crease sites are this far apart along an edge.
 SITE_SPACING_FRACTION = 0.008
+#: Uniform candidate samples per spacing^2 of surface area that the smooth sites are
+#: thinned from (meshrec.model.thinning, dart throwing in a random order) ...
+SITE_CANDIDATES_PER_SPACING2 = 1.5
+#: ... to at least this many spacings apart. With 1.5 candidates per spacing^2, 1.35
+#: keeps 0.27 sites per spacing^2 (the density trimesh's remove_close kept from 6
+#: candidates per spacing^2, which left holes 2.65 spacings wide; these leave at most
+#: about 2.3 on a blob).
+SITE_THINNING_FACTOR = 1.35
 #: Radius of the neighbourhood whose (K, H) make a site's range (what a touch straddling a
 #: change of curvature may report), as a fraction of sqrt(surface area): about half the
 #: touch curves' half-length.

@@ -425,8 +425,12 @@ def corner_normals(mesh: MeshData) -> np.ndarray:
     Returns
     -------
     (m, 3, 3) float64
-        Unit normals of corners 0, 1, 2 of every face.
+        Unit normals of corners 0, 1, 2 of every face; read-only, computed once per mesh
+        (the bulges, the surface's normal field and the curvature sites share them).
     """
+    cached = mesh.__dict__.get("_corner_normals")
+    if cached is not None:
+        return cached
     V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     # libigl's threshold compares face normals: in units of the model's size, so that
@@ -437,6 +441,8 @@ def corner_normals(mesh: MeshData) -> np.ndarray:
     if bad.any():
         # Degenerate faces: fall back on the vertex normals.
         CN[bad] = mesh.vertex_normals[F][bad]
+    CN.setflags(write=False)
+    mesh.__dict__["_corner_normals"] = CN
     return CN
 
 
