@@ -404,6 +404,12 @@ JOINT_KEEP_RATIO = 1.5
 #: (curves 0.3 long), inside distinct_poses' tolerance (POSE_DUPLICATE_FRACTION, 1 deg).
 JOINT_MERGE_ITER = 3
 JOINT_SAME_POSE_FRACTION = 0.02
+#: The best joint pose, if it used all REFINE_MAX_ITER iterations on all the points, is
+#: refined again, this many iterations at most: it is crawling along a nearly free motion
+#: (three touches on a bumped sphere, reports/touches_lookalike.md: 0.069 from the truth
+#: in the recognition, 0.015 after about 20 more, where a refinement from the true pose
+#: ends; tests/test_joint.py).
+JOINT_POLISH_ITER = 100
 #: A model whose fit to the touches registered so far already makes it less probable than
 #: this, relative to the best joint fit of any model, is not registered on its remaining
 #: touches: every further touch can only lower its likelihood (the explicit, order-free
