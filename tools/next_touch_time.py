@@ -5,7 +5,7 @@ written to a file, and ``meshrec next-touch FILE --models objects --seed S --jso
 ``--runs`` times as a new process (warm index cache: the first run of each is not timed).
 Reported per object: the median CPU time of the process (user + system, from
 ``resource.getrusage(RUSAGE_CHILDREN)``: the machine is shared) and its median wall time,
-and the same for ``python -c "import meshrec"`` alone (the interpreter's start-up and the
+and the same for the interpreter starting and importing what the command imports (the
 package's import: the floor of any command).
 
     .venv/bin/python tools/next_touch_time.py --runs 3 --out reports/next_touch_time.md
@@ -28,6 +28,7 @@ from pathlib import Path
 
 import meshrec
 
+_IMPORT = "import meshrec; meshrec.recognize, meshrec.next_touch, meshrec.ModelLibrary"
 _CLI = "import sys; from meshrec.app.cli import main; sys.exit(main())"
 
 
@@ -48,10 +49,10 @@ def run(runs: int, seed: int, log) -> list[dict]:
     library = meshrec.ModelLibrary.from_folder(meshrec.bundled_models_dir("objects"))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        floor = [_timed([sys.executable, "-c", "import meshrec"], env) for _ in range(runs)]
+        floor = [_timed([sys.executable, "-c", _IMPORT], env) for _ in range(runs)]
         rows.append(
             {
-                "what": "`python -c 'import meshrec'`",
+                "what": "start-up and imports alone",
                 "cpu": statistics.median(c for c, _, _ in floor),
                 "wall": statistics.median(w for _, w, _ in floor),
                 "verdict": "-",
