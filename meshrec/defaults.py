@@ -403,6 +403,21 @@ JOINT_COARSE_ITER = 10
 #: ... then on all the points those whose coarse RMS is within this factor of the best.
 #: (Seeds are refined at all only if their starting RMS is within it of the least.)
 JOINT_KEEP_RATIO = 1.5
+#: Many seeds (the pair search's 32) converge to a few poses: after this many coarse
+#: iterations, a seed whose coarse points lie within JOINT_SAME_POSE_FRACTION x the curves'
+#: half-length of a better seed's is dropped (the same basin; refining both on all the
+#: points cost half the pair search's joint refinement). Measured on the three pair
+#: searches of the first object of tools/touches.py --sets 5: 9-17 of 32 seeds in one
+#: basin; seeds 0.02 half-lengths apart after the coarse stage ended at most 0.0057 apart
+#: (curves 0.3 long), inside distinct_poses' tolerance (POSE_DUPLICATE_FRACTION, 1 deg).
+JOINT_MERGE_ITER = 3
+JOINT_SAME_POSE_FRACTION = 0.02
+#: The best joint pose, if it used all REFINE_MAX_ITER iterations on all the points, is
+#: refined again, this many iterations at most: it is crawling along a nearly free motion
+#: (three touches on a bumped sphere, reports/touches_lookalike.md: 0.069 from the truth
+#: in the recognition, 0.015 after about 20 more, where a refinement from the true pose
+#: ends; tests/test_joint.py).
+JOINT_POLISH_ITER = 100
 #: A model whose fit to the touches registered so far already makes it less probable than
 #: this, relative to the best joint fit of any model, is not registered on its remaining
 #: touches: every further touch can only lower its likelihood (the explicit, order-free

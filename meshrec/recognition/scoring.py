@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from meshrec import defaults
 
@@ -321,7 +321,9 @@ def fit_p_value(rms: float, n_points: int, noise: float, dof: int = defaults.POS
     n_eff = effective_points(n_points)
     if not isinstance(dof, (int, np.integer)) or dof < 0 or dof >= n_eff:
         raise ValueError(f"dof must be an integer in [0, {n_eff:g}), got {dof!r}")
-    return float(stats.chi2.sf(n_eff * (r / sigma) ** 2, n_eff - dof))
+    # chdtrc(k, x) is chi2.sf(x, k): scipy.special, not scipy.stats, whose import alone
+    # takes 0.25 s of CPU time (a quarter of `meshrec next-touch`'s start-up)
+    return float(special.chdtrc(n_eff - dof, n_eff * (r / sigma) ** 2))
 
 
 def plausible_set(
