@@ -227,3 +227,24 @@ def test_touch_on_a_cylinders_side_is_named_with_a_free_slide(tmp_path):
     assert all(f.turn_symmetric)
     assert rec.verdict == "ambiguous"
     assert rec.plausible == ("cylinder_1",)
+
+
+def test_touch_on_a_coarse_box_face_leaves_two_slides_and_a_turn(tmp_path):
+    # A box exported as 12 triangles: every face touches the crease vertices at its corners,
+    # so no point lies on a face away from them; the touch's points that reach an edge
+    # within the noise must not pin the pose (their constraint is one-sided).
+    box = trimesh.creation.box(extents=(2.0, 1.5, 1.0))
+    folder = tmp_path / "models"
+    folder.mkdir()
+    box.export(folder / "box.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    v, f = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=0.04)
+    fine = trimesh.Trimesh(v, f)
+    found = []
+    # contacts on the large face, one in its middle and two whose curves reach an edge
+    for k, contact in enumerate(([0.1, 0.05, 0.5], [0.6, 0.0, 0.5], [0.0, 0.35, 0.5])):
+        t = meshrec.simulate_touch(fine, contact=contact, rng=k, length=0.8, noise=1e-3)
+        rec = meshrec.recognize(t.touch, lib)
+        found.append((rec.pose_freedom.slides, rec.pose_freedom.turns))
+        assert rec.verdict == "ambiguous"
+    assert found == [(2, 1)] * 3
