@@ -227,3 +227,50 @@ def test_touch_on_a_cylinders_side_is_named_with_a_free_slide(tmp_path):
     assert all(f.turn_symmetric)
     assert rec.verdict == "ambiguous"
     assert rec.plausible == ("cylinder_1",)
+
+
+def test_touch_on_a_coarse_box_face_leaves_two_slides_and_a_turn(tmp_path):
+    # A box exported as 12 triangles: every face touches the crease vertices at its corners,
+    # so no point lies on a face away from them; the touch's points that reach an edge
+    # within the noise must not pin the pose (their constraint is one-sided).
+    box = trimesh.creation.box(extents=(2.0, 1.5, 1.0))
+    folder = tmp_path / "models"
+    folder.mkdir()
+    box.export(folder / "box.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    v, f = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=0.04)
+    fine = trimesh.Trimesh(v, f)
+    found = []
+    # contacts on the large face, one in its middle and two whose curves reach an edge
+    for k, contact in enumerate(([0.1, 0.05, 0.5], [0.6, 0.0, 0.5], [0.0, 0.35, 0.5])):
+        t = meshrec.simulate_touch(fine, contact=contact, rng=k, length=0.8, noise=1e-3)
+        rec = meshrec.recognize(t.touch, lib)
+        found.append((rec.pose_freedom.slides, rec.pose_freedom.turns))
+        assert rec.verdict == "ambiguous"
+    assert found == [(2, 1)] * 3
+
+
+def test_flat_touch_decides_only_when_wider_than_the_other_flat_faces(tmp_path):
+    # Three curves through one point on a 4 x 4 face, each `length` long: a star of radius
+    # length / 2. A cylinder's cap of radius 1 holds the star of radius 0.4 (the touch
+    # cannot tell the cap from the face: ambiguous, both plausible) but not the star of
+    # radius 1.5, which hangs over the rim (the cylinder is rejected by its fit).
+    folder = tmp_path / "models"
+    folder.mkdir()
+    box = trimesh.creation.box(extents=(4.0, 4.0, 1.0))
+    box.export(folder / "box.stl")
+    trimesh.creation.cylinder(radius=1.0, height=3.0, sections=32).export(
+        folder / "cylinder.stl"
+    )
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    v, f = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=0.05)
+    fine = trimesh.Trimesh(v, f)
+    small = meshrec.simulate_touch(fine, contact=[0.1, -0.2, 0.5], rng=1, length=0.8)
+    rec = meshrec.recognize(small.touch, lib)
+    assert rec.verdict == "ambiguous"
+    assert set(rec.plausible) == {"box", "cylinder"}
+    wide = meshrec.simulate_touch(fine, contact=[0.1, -0.2, 0.5], rng=1, length=3.0)
+    rec = meshrec.recognize(wide.touch, lib)
+    assert rec.plausible == ("box",)
+    rms = {s.model: s.rms for s in rec.scores}
+    assert rms["cylinder"] > 50 * rms["box"]

@@ -315,9 +315,15 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     y = apply_transform(best.T_model_touch, points)
     # The test is taken at the points' closest points on the surface: the data's noise
     # across the surface would otherwise pin a turn about a cylinder's axis at the noise.
-    on_surface, normals, over = _pose_normals(model, y)
-    if np.count_nonzero(~over) >= 6:
-        on_surface, normals = on_surface[~over], normals[~over]
+    on_surface, normals, at_crease, leaning = _pose_normals(model, y)
+    # Points at a crease are left out (their constraint is one-sided); so are, on a fine
+    # mesh, the points on the thin triangles that touch a crease vertex. On a coarse export
+    # (a 12-triangle box, a cylinder's cap fanned to its rim) every face touches a crease
+    # vertex: then only the points at the crease itself are left out.
+    for over in (at_crease | leaning, at_crease):
+        if np.count_nonzero(~over) >= 6:
+            on_surface, normals = on_surface[~over], normals[~over]
+            break
     freedom = pose_freedom(on_surface, normals)
     if freedom.free:
         freedom = _with_model_symmetries(freedom, model)
@@ -355,9 +361,11 @@ def _with_model_symmetries(freedom: PoseFreedom, model) -> PoseFreedom:
     )
 
 
-def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each point's closest point on the surface, the normal there, and which points lie at
-    a crease.
+def _pose_normals(
+    model, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's closest point on the surface, the normal there, which points lie at a
+    crease, and which lie on a face touching a crease vertex.
 
     The normal is the smooth normal field of the vertex normals (exactly horizontal on a
     finely meshed cylinder's side, where the residual's gradient, that of the quadratic
@@ -394,7 +402,7 @@ def _pose_normals(model, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
         g = residuals(model, points + step * t).gradient
         g /= np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
         at_crease |= np.einsum("ij,ij->i", g, unit) < cos_limit
-    return closest, normals, at_crease | leaning
+    return closest, normals, at_crease, leaning
 
 
 def _freedom_phrase(freedom: PoseFreedom) -> str:
