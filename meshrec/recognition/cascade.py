@@ -231,16 +231,32 @@ def cascade_register(
         geometry = touch_geometry(touch)
     if noise is None:
         noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+    models = list(models)
+    out: list[Registration | None] = [None] * len(models)
+    stay = list(range(len(models)))
+    if len(models) >= defaults.SCREEN_MIN_MODELS:
+        # The library-wide screen first (imported here: it builds on this module's rule).
+        from meshrec.recognition.screen import (
+            library_sites,
+            screen_library,
+            screen_survivors,
+            screened_registration,
+        )
+
+        screen = screen_library(touch, geometry, library_sites(models))
+        passed = screen_survivors(screen, int(touch.n_points), noise)
+        stay = [i for i in stay if passed[i]]
+        for i in np.flatnonzero(~passed):
+            out[i] = screened_registration(touch, models[i], geometry, screen, int(i))
     coarse = []
-    for i, model in enumerate(models):
+    for i in stay:
         if progress is not None:
-            progress(i, len(models), model.name)
-        coarse.append(register_coarse(touch, model, geometry))
+            progress(i, len(models), models[i].name)
+        coarse.append(register_coarse(touch, models[i], geometry))
     keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
-    out = []
-    for model, c, k in zip(models, coarse, keep, strict=True):
+    for i, c, k in zip(stay, coarse, keep, strict=True):
         if c.rejected or k:
-            out.append(register_full(model, c, method=method, trace=trace))
+            out[i] = register_full(models[i], c, method=method, trace=trace)
         else:
-            out.append(pruned_registration(touch, model, c))
+            out[i] = pruned_registration(touch, models[i], c)
     return out

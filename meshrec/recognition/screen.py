@@ -1,0 +1,509 @@
+"""The library-wide screen: every model's best fit estimated at once, before any model's
+own registration stages, so that only the models that could compete are registered.
+
+For one touch, over all the models' curvature sites together (:class:`LibrarySites`, built
+once per library):
+
+1. the (K, H) lookup of every model in one interval test (each side of the surface the
+   model's registration would try);
+2. the hits spread over each model's surface by a grid of cells of
+   ``defaults.SCREEN_CELL_FRACTION`` times the curves' half-length (the best (K, H) match
+   in each cell), all models in one ``np.unique``;
+3. at every candidate a local height-field z = f(x, y) in its tangent frame
+   (:func:`meshrec.model.heightfield.fit_heightfields`: a degree-4 polynomial through the
+   heights and slopes of its ``defaults.SCREEN_NEIGHBOURS`` nearest sites, found by one
+   KD-tree query over all models' sites, thinned to the curves' reach);
+4. a data subsample (``defaults.SCREEN_POINTS``) at ``defaults.SCREEN_PHI_STEPS`` angles
+   about the normal, its mean vertical distance to every field in one matrix product per chunk
+   (:func:`~meshrec.model.heightfield.heightfield_distances`); a model's estimate is its
+   least.
+
+:func:`screen_survivors` applies the cascade's rule
+(:func:`meshrec.recognition.cascade.cascade_survivors`) to the estimates with the screen's
+own measured gains; :func:`screened_registration` gives a model the screen prunes the pose
+of its best estimate, refined a few steps on all the points with the exact distances, so
+its error is an upper bound of what its registration would find and its probability only
+falls. Models the screen cannot judge (seen through a ball-tipped probe, or with sharp
+edges, whose fields would straddle a crease) always survive it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from meshrec import defaults
+from meshrec.contact.geometry import LocalGeometry
+from meshrec.io.checks import check_instance
+from meshrec.io.touch import TouchData
+from meshrec.model.heightfield import fit_heightfields, heightfield_gaps
+from meshrec.model.index import ModelIndex
+from meshrec.model.probe import probe_radius_of
+from meshrec.recognition.cascade import cascade_survivors
+from meshrec.registration.candidates import curvature_tolerance
+from meshrec.registration.chart import SurfacePoint, rotation_z
+from meshrec.registration.poses import refined_pose
+from meshrec.registration.refine import refine_rigid
+from meshrec.registration.register import Registration, StageTimes
+from meshrec.registration.sampling import even_subsample
+from meshrec.registration.transform import superposition
+
+__all__ = [
+    "LibraryScreen",
+    "LibrarySites",
+    "library_sites",
+    "screen_library",
+    "screen_survivors",
+    "screened_registration",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class LibrarySites:
+    """Every model's curvature sites, concatenated (the screen's library-wide index).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The models, in order.
+    model : (N,) int32
+        Each site's model (index into ``names``).
+    points, normals, dir1 : (N, 3) float64
+        Sites, unit normals, first principal directions.
+    lo, hi : (N, 2) float64
+        Each site's (K, H) range; ``+inf, -inf`` for sites outside the model's lookup
+        table (never matched).
+    K, H : (N,) float64
+        Each site's own (K, H) (0 outside the table).
+    rank : (N,) float64
+        A seeded uniform number per site: the sites with ``rank < f`` are an even random
+        fraction ``f`` of them (the thinning of the neighbours).
+    area_per_site : (m,) float64
+        Each model's surface area over its sites.
+    screened : (m,) bool
+        Models the screen judges (no probe radius, no crease site).
+    closed : (m,) bool
+        Models with a closed mesh (one side tried when the touch gives a normal).
+    """
+
+    names: tuple[str, ...]
+    model: np.ndarray = field(repr=False)
+    points: np.ndarray = field(repr=False)
+    normals: np.ndarray = field(repr=False)
+    dir1: np.ndarray = field(repr=False)
+    lo: np.ndarray = field(repr=False)
+    hi: np.ndarray = field(repr=False)
+    K: np.ndarray = field(repr=False)
+    H: np.ndarray = field(repr=False)
+    rank: np.ndarray = field(repr=False)
+    area_per_site: np.ndarray = field(repr=False)
+    screened: np.ndarray = field(repr=False)
+    closed: np.ndarray = field(repr=False)
+
+    @classmethod
+    def from_models(cls, models: Sequence) -> LibrarySites:
+        """Concatenate the models' curvature tables.
+
+        Parameters
+        ----------
+        models : sequence of ModelIndex
+
+        Returns
+        -------
+        LibrarySites
+
+        Raises
+        ------
+        TypeError
+            If a model is not a ModelIndex.
+        ValueError
+            If ``models`` is empty.
+        """
+        models = list(models)
+        if not models:
+            raise ValueError("models must hold at least one model, got none")
+        parts = {k: [] for k in ("model", "points", "normals", "dir1", "lo", "hi", "K", "H")}
+        area, screened, closed = [], [], []
+        for i, m in enumerate(models):
+            check_instance(m, ModelIndex, f"models[{i}]")
+            t = m.curvature
+            n = len(t.points)
+            lo = np.full((n, 2), np.inf)
+            hi = np.full((n, 2), -np.inf)
+            ts = t.table_sites
+            lo[ts, 0], lo[ts, 1] = t.K_range[ts, 0], t.H_range[ts, 0]
+            hi[ts, 0], hi[ts, 1] = t.K_range[ts, 1], t.H_range[ts, 1]
+            K = np.zeros(n)
+            H = np.zeros(n)
+            K[ts], H[ts] = t.K[ts], t.H[ts]
+            parts["model"].append(np.full(n, i, dtype=np.int32))
+            parts["points"].append(np.asarray(t.points))
+            parts["normals"].append(np.asarray(t.normals))
+            parts["dir1"].append(np.asarray(t.dir1))
+            parts["lo"].append(lo)
+            parts["hi"].append(hi)
+            parts["K"].append(K)
+            parts["H"].append(H)
+            area.append(t.scale**2 / max(n, 1))
+            screened.append(probe_radius_of(m) == 0.0 and not bool(np.any(t.crease)))
+            closed.append(bool(m.mesh.closed))
+        arrays = {k: np.concatenate(v) for k, v in parts.items()}
+        rank = np.random.default_rng(defaults.SCREEN_SEED).random(len(arrays["model"]))
+        return cls(
+            names=tuple(m.name for m in models),
+            rank=rank,
+            area_per_site=np.array(area),
+            screened=np.array(screened, dtype=bool),
+            closed=np.array(closed, dtype=bool),
+            **arrays,
+        )
+
+    def __len__(self) -> int:
+        return len(self.model)
+
+
+_CACHE: list[tuple[tuple, list, LibrarySites]] = []
+
+
+def library_sites(models: Sequence) -> LibrarySites:
+    """The :class:`LibrarySites` of these models, built once and kept for the last two
+    model lists (a service or a benchmark recognises many touches on one library).
+
+    Parameters
+    ----------
+    models : sequence of ModelIndex
+
+    Returns
+    -------
+    LibrarySites
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :meth:`LibrarySites.from_models`.
+    """
+    models = list(models)
+    key = tuple(id(m) for m in models)
+    for k, _, sites in _CACHE:
+        if k == key:
+            return sites
+    sites = LibrarySites.from_models(models)
+    _CACHE.insert(0, (key, models, sites))  # the models are held: their ids stay theirs
+    del _CACHE[2:]
+    return sites
+
+
+@dataclass(frozen=True)
+class LibraryScreen:
+    """The screen's result for one touch.
+
+    Attributes
+    ----------
+    estimates : (m,) float
+        Each model's least mean distance of the data subsample to the height-fields of
+        its candidates; NaN for a model with no candidate or not screened.
+    judged : (m,) bool
+        Models the screen judged (screened, with candidates).
+    side : (m,) int
+        The side (0: the touch's geometry, 1: its flip) of each judged model's best
+        candidate.
+    site : (m,) int
+        Its site (index into the model's curvature table); -1 when not judged.
+    phi : (m,) float
+        Its best angle, radians.
+    candidates : (m,) int
+        Candidates screened per model.
+    raw_hits : (m,) int
+        Sites matching the lookup per model (both sides).
+    seconds : float
+        Wall time of the screen.
+    """
+
+    estimates: np.ndarray = field(repr=False)
+    judged: np.ndarray = field(repr=False)
+    side: np.ndarray = field(repr=False)
+    site: np.ndarray = field(repr=False)
+    phi: np.ndarray = field(repr=False)
+    candidates: np.ndarray = field(repr=False)
+    raw_hits: np.ndarray = field(repr=False)
+    seconds: float = 0.0
+
+
+def _frames(normals: np.ndarray, dir1: np.ndarray) -> np.ndarray:
+    """(c, 3, 3) frames (d1, d2, n) as :func:`meshrec.registration.chart.tangent_frame`
+    builds them, for many sites at once."""
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    d1 = dir1 - np.einsum("ij,ij->i", dir1, n)[:, None] * n
+    bad = np.linalg.norm(d1, axis=1) < 1e-8 * np.maximum(1.0, np.linalg.norm(dir1, axis=1))
+    if bad.any():
+        axis = np.eye(3)[np.argmin(np.abs(n[bad]), axis=1)]
+        d1[bad] = axis - np.einsum("ij,ij->i", axis, n[bad])[:, None] * n[bad]
+    d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
+    d2 = np.cross(n, d1)
+    return np.stack([d1, d2, n], axis=2)
+
+
+def _sides(geometry: LocalGeometry) -> tuple[LocalGeometry, LocalGeometry]:
+    return geometry, geometry.flipped()
+
+
+def screen_library(
+    touch: TouchData, geometry: LocalGeometry, sites: LibrarySites
+) -> LibraryScreen:
+    """Estimate every model's best fit of the touch at once (see the module's text).
+
+    Parameters
+    ----------
+    touch : TouchData
+    geometry : LocalGeometry
+        The touch's local geometry.
+    sites : LibrarySites
+        Of the models to screen.
+
+    Returns
+    -------
+    LibraryScreen
+
+    Raises
+    ------
+    TypeError
+        If ``touch`` is not a TouchData, ``geometry`` not a LocalGeometry or ``sites``
+        not a LibrarySites.
+    """
+    check_instance(touch, TouchData, "touch")
+    check_instance(geometry, LocalGeometry, "geometry")
+    check_instance(sites, LibrarySites, "sites")
+    t0 = time.perf_counter()
+    m = len(sites.names)
+    hl = float(geometry.half_length)
+    radius = defaults.SCREEN_REACH * hl
+    cell = defaults.SCREEN_CELL_FRACTION * hl
+    two_sides = ~sites.closed if touch.normal is not None else np.ones(m, dtype=bool)
+    cand_site, cand_side, raw_hits = [], [], np.zeros(m, dtype=np.int64)
+    for s, side in enumerate(_sides(geometry)):
+        use_model = sites.screened & (two_sides if s == 1 else True)
+        tol_K, tol_H = curvature_tolerance(side.k1, side.k2, hl, side.fit_rms)
+        K, H = side.k1 * side.k2, 0.5 * (side.k1 + side.k2)
+        lo, hi = sites.lo, sites.hi
+        match = (lo[:, 0] - tol_K <= K) & (hi[:, 0] + tol_K >= K)
+        match &= (lo[:, 1] - tol_H <= H) & (hi[:, 1] + tol_H >= H)
+        match &= use_model[sites.model]
+        hits = np.flatnonzero(match)
+        if len(hits) == 0:
+            continue
+        raw_hits += np.bincount(sites.model[hits], minlength=m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mis = np.abs(sites.K[hits] - K) / tol_K + np.abs(sites.H[hits] - H) / tol_H
+        mis = np.nan_to_num(mis, nan=np.inf)
+        order = np.lexsort((mis, sites.model[hits]))
+        hits = hits[order]
+        keys = np.column_stack(
+            [sites.model[hits].astype(np.int64), np.floor(sites.points[hits] / cell).astype(np.int64)]
+        )
+        _, first = np.unique(keys, axis=0, return_index=True)
+        cand_site.append(hits[np.sort(first)])
+        cand_side.append(np.full(len(first), s, dtype=np.int64))
+    est = np.full(m, np.nan)
+    best_side = np.zeros(m, dtype=np.int64)
+    best_site = np.full(m, -1, dtype=np.int64)
+    best_phi = np.zeros(m)
+    n_cand = np.zeros(m, dtype=np.int64)
+    if cand_site:
+        cands = np.concatenate(cand_site)
+        sides_of = np.concatenate(cand_side)
+        err, phi = _candidate_errors(touch, geometry, sites, cands, sides_of, radius)
+        cm = sites.model[cands]
+        n_cand = np.bincount(cm, minlength=m)
+        order = np.lexsort((err, cm))
+        first = order[np.unique(cm[order], return_index=True)[1]]
+        est[cm[first]] = err[first]
+        best_side[cm[first]] = sides_of[first]
+        offsets = np.concatenate([[0], np.cumsum(np.bincount(sites.model, minlength=m))])
+        best_site[cm[first]] = cands[first] - offsets[cm[first]]
+        best_phi[cm[first]] = phi[first]
+    return LibraryScreen(
+        estimates=est,
+        judged=np.isfinite(est),
+        side=best_side,
+        site=best_site,
+        phi=best_phi,
+        candidates=n_cand,
+        raw_hits=raw_hits,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _candidate_errors(touch, geometry, sites, cands, sides_of, radius):
+    """Each candidate's least mean distance over the phi grid, and its angle."""
+    k = defaults.SCREEN_NEIGHBOURS
+    cm = sites.model[cands]
+    # The neighbours: the sites thinned so that about k of them fall within the reach,
+    # per model (its site density), and models kept apart by a fourth coordinate.
+    frac = np.minimum(1.0, k * sites.area_per_site / (math.pi * radius**2))
+    keep = np.flatnonzero(sites.rank < frac[sites.model])
+    keep = np.union1d(keep, cands)
+    span = float(np.ptp(sites.points, axis=0).max() + np.abs(sites.points).max() + radius)
+    sep = 4.0 * span
+    pts4 = np.column_stack([sites.points[keep], sites.model[keep] * sep])
+    tree = cKDTree(pts4)
+    q4 = np.column_stack([sites.points[cands], cm * sep])
+    _, nb = tree.query(q4, k=min(k, len(keep)), distance_upper_bound=sep / 2)
+    nb = np.asarray(nb).reshape(len(cands), -1)
+    missing = nb >= len(keep)
+    nb = keep[np.minimum(nb, len(keep) - 1)]
+    frames = _frames(sites.normals[cands], sites.dir1[cands])
+    steps = defaults.SCREEN_PHI_STEPS
+    grid = np.arange(steps) * (2.0 * np.pi / steps)
+    Rz = rotation_z(grid)  # (s, 3, 3)
+    subset = even_subsample(int(touch.n_points), defaults.SCREEN_POINTS)
+    data, project = [], []
+    for side in _sides(geometry):
+        local = (touch.points[subset] - side.point) @ side.frame  # (n, 3)
+        placed = np.einsum("sij,nj->sni", Rz, local)  # (s, n, 3)
+        data.append(placed.reshape(-1, 3))
+        # The gaps' part that a small tilt and lift of the data explain (an affine function
+        # of the placed (x, y)) is removed: what is left is the candidate's shape mismatch.
+        X = np.concatenate([np.ones(placed.shape[:2] + (1,)), placed[..., :2]], axis=2)
+        project.append(np.eye(len(subset)) - X @ np.linalg.pinv(X))  # (s, n, n)
+    n_sub = len(subset)
+    err = np.empty(len(cands))
+    phi = np.empty(len(cands))
+    chunk = defaults.SCREEN_CHUNK
+    for a in range(0, len(cands), chunk):
+        b = min(a + chunk, len(cands))
+        nbp = sites.points[nb[a:b]]
+        nbn = sites.normals[nb[a:b]].copy()
+        miss = missing[a:b]
+        if miss.any():
+            nbn[miss] = -frames[a:b, :, 2][np.nonzero(miss)[0]]  # left out of the fit
+        coef = fit_heightfields(
+            sites.points[cands[a:b]], frames[a:b], nbp, nbn, radius,
+            degree=defaults.SCREEN_DEGREE, slope_weight=defaults.SCREEN_SLOPE_WEIGHT,
+        )
+        for s in (0, 1):
+            sel = np.flatnonzero(sides_of[a:b] == s)
+            if len(sel) == 0:
+                continue
+            d = heightfield_gaps(coef[sel], data[s], radius, degree=defaults.SCREEN_DEGREE)
+            d = d.reshape(steps, n_sub, len(sel))
+            if defaults.SCREEN_AFFINE:
+                d = np.matmul(project[s], d)
+            mean = np.abs(d).mean(axis=1)  # (s, c)
+            j = np.argmin(mean, axis=0)
+            err[a + sel] = mean[j, np.arange(len(sel))]
+            phi[a + sel] = grid[j]
+    return err, phi
+
+
+def screen_survivors(
+    screen: LibraryScreen,
+    n_points: int,
+    noise: float,
+    screen_gain: float = defaults.SCREEN_GAIN,
+    leader_gain: float = defaults.SCREEN_LEADER_GAIN,
+    log_ratio: float = defaults.JOINT_PRUNE_LOG_RATIO,
+) -> np.ndarray:
+    """Which models go on to their own registration stages.
+
+    The cascade's rule (:func:`meshrec.recognition.cascade.cascade_survivors`) on the
+    screen's estimates with its own gains; a model the screen did not judge always
+    survives.
+
+    Parameters
+    ----------
+    screen : LibraryScreen
+    n_points : int
+        Data points of the touch.
+    noise : float
+        The touch's noise estimate.
+    screen_gain, leader_gain, log_ratio : float
+        As :func:`~meshrec.recognition.cascade.cascade_survivors`.
+
+    Returns
+    -------
+    (m,) bool
+
+    Raises
+    ------
+    TypeError
+        If ``screen`` is not a LibraryScreen.
+    ValueError
+        As :func:`~meshrec.recognition.cascade.cascade_survivors`.
+    """
+    check_instance(screen, LibraryScreen, "screen")
+    est = [float(e) if j else None for e, j in zip(screen.estimates, screen.judged, strict=True)]
+    keep = cascade_survivors(est, n_points, noise, screen_gain, leader_gain, log_ratio)
+    return keep | ~screen.judged
+
+
+def screened_registration(
+    touch: TouchData, model, geometry: LocalGeometry, screen: LibraryScreen, i: int
+) -> Registration:
+    """The Registration of a model the screen pruned: the pose of its best estimate,
+    refined by ``defaults.SCREEN_PRUNED_ITERATIONS`` steps on all the points with the
+    exact distances (its error an upper bound of the full search's, up to the optimisers'
+    tolerance).
+
+    Parameters
+    ----------
+    touch : TouchData
+    model : ModelIndex
+        The ``i``-th model of the screen.
+    geometry : LocalGeometry
+        The touch's local geometry (the one screened).
+    screen : LibraryScreen
+    i : int
+        The model's index in the screen.
+
+    Returns
+    -------
+    Registration
+        With ``pruned`` true, ``searches`` 0 and one pose.
+
+    Raises
+    ------
+    TypeError
+        If an argument is not of its type.
+    ValueError
+        If the screen did not judge model ``i``.
+    """
+    check_instance(touch, TouchData, "touch")
+    check_instance(model, ModelIndex, "model")
+    check_instance(geometry, LocalGeometry, "geometry")
+    check_instance(screen, LibraryScreen, "screen")
+    if not (0 <= i < len(screen.judged)) or not screen.judged[i]:
+        raise ValueError(f"i must be a model the screen judged, got {i!r}")
+    t0 = time.perf_counter()
+    side = _sides(geometry)[int(screen.side[i])]
+    t = model.curvature
+    v = int(screen.site[i])
+    frame = _frames(t.normals[v][None, :], t.dir1[v][None, :])[0]
+    origin = SurfacePoint(point=np.array(t.points[v]), frame=frame)
+    T0 = superposition(side.point, side.frame, origin, float(screen.phi[i]))
+    ref = refine_rigid(model, touch.points, T0, max_iter=defaults.SCREEN_PRUNED_ITERATIONS)
+    pose = refined_pose(model, ref, geometry.point)
+    seconds = time.perf_counter() - t0
+    return Registration(
+        model=model.name,
+        path=str(model.path),
+        error=pose.error,
+        contact=pose.contact,
+        normal=pose.normal,
+        phi=None,
+        T_model_touch=pose.T_model_touch,
+        candidates=int(screen.candidates[i]),
+        raw_hits=int(screen.raw_hits[i]),
+        searches=0,
+        seconds=seconds,
+        times=StageTimes(refine=seconds),
+        candidate_points=origin.point[None, :],
+        rms=pose.rms,
+        n_points=int(touch.n_points),
+        poses=(pose,),
+        pruned=True,
+    )
