@@ -573,10 +573,13 @@ DASK_CONNECT_SECONDS = 10.0
 SCREEN_MIN_MODELS = 8
 #: Reach of the screen's local height-fields, times the curves' half-length (the data lie
 #: within about one half-length of the contact; a margin for the spread of candidates).
-SCREEN_REACH = 1.3
+SCREEN_REACH = 1.6
 #: The screen spreads each model's lookup hits over cells of this size, times the curves'
 #: half-length (the best (K, H) match per cell becomes a candidate).
 SCREEN_CELL_FRACTION = 0.8
+#: The data's contact is placed on a grid of this many by this many points over each
+#: candidate's cell (one height-field serves them all).
+SCREEN_SHIFTS = 3
 #: Neighbouring sites (their heights and slopes) each height-field is fitted to.
 SCREEN_NEIGHBOURS = 32
 #: Degree of the height-field polynomials (4: a sphere's quartic term over the reach).

@@ -92,6 +92,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--blobs", type=int, default=30, help="blob library size (0: none)")
     p.add_argument("--shapes", type=int, default=0, help="shape_set library size (0: none)")
+    p.add_argument("--surfaces", type=int, default=0, help="touches per paper surface (0: none)")
     p.add_argument("--touches", type=int, default=8, help="touches per library")
     p.add_argument("--data", type=Path, default=None, help="blobs and cache folder")
     p.add_argument("--out", type=Path, default=None)
@@ -109,6 +110,16 @@ def main(argv=None) -> int:
             library = meshrec.ModelLibrary.from_folder(folder, cache_dir=data / "cache")
             touches = _touches(library, library.names, args.touches, "blob")
             _measure(library, touches, f"blobs ({args.blobs})", rows)
+        if args.surfaces:
+            library = meshrec.ModelLibrary.from_folder(
+                meshrec.bundled_models_dir("surfaces"), cache_dir=data / "cache"
+            )
+            touches = [
+                (name, bench.paper_touch(library[name], seed=k).touch)
+                for name in library.names
+                for k in range(args.surfaces)
+            ]
+            _measure(library, touches, "paper surfaces", rows)
         if args.shapes:
             shapes = bench.shape_set(args.shapes, seed=0)
             bench.write_shapes(shapes, Path(tmp) / "shapes")

@@ -14,7 +14,9 @@ once per library):
    heights and slopes of its ``defaults.SCREEN_NEIGHBOURS`` nearest sites, found by one
    KD-tree query over all models' sites, thinned to the curves' reach);
 4. a data subsample (``defaults.SCREEN_POINTS``) at ``defaults.SCREEN_PHI_STEPS`` angles
-   about the normal, its mean vertical distance to every field in one matrix product per chunk
+   about the normal and with its contact at ``defaults.SCREEN_SHIFTS`` squared places over
+   the candidate's cell, its gaps to every field less their affine part (a small tilt and
+   lift of the data), their mean in one matrix product per chunk
    (:func:`~meshrec.model.heightfield.heightfield_distances`); a model's estimate is its
    least.
 
@@ -41,7 +43,7 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
-from meshrec.model.heightfield import fit_heightfields, heightfield_gaps
+from meshrec.model.heightfield import fit_heightfields, monomials
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_radius_of
 from meshrec.recognition.cascade import cascade_survivors
@@ -216,6 +218,8 @@ class LibraryScreen:
         Its site (index into the model's curvature table); -1 when not judged.
     phi : (m,) float
         Its best angle, radians.
+    shift : (m, 2) float
+        Its best placement of the data's contact in the site's tangent plane, model units.
     candidates : (m,) int
         Candidates screened per model.
     raw_hits : (m,) int
@@ -229,6 +233,7 @@ class LibraryScreen:
     side: np.ndarray = field(repr=False)
     site: np.ndarray = field(repr=False)
     phi: np.ndarray = field(repr=False)
+    shift: np.ndarray = field(repr=False)
     candidates: np.ndarray = field(repr=False)
     raw_hits: np.ndarray = field(repr=False)
     seconds: float = 0.0
@@ -284,7 +289,8 @@ def screen_library(
     radius = defaults.SCREEN_REACH * hl
     cell = defaults.SCREEN_CELL_FRACTION * hl
     two_sides = ~sites.closed if touch.normal is not None else np.ones(m, dtype=bool)
-    cand_site, cand_side, raw_hits = [], [], np.zeros(m, dtype=np.int64)
+    raw_hits = np.zeros(m, dtype=np.int64)
+    hit_site, hit_side, hit_cell = [], [], []
     for s, side in enumerate(_sides(geometry)):
         use_model = sites.screened & (two_sides if s == 1 else True)
         tol_K, tol_H = curvature_tolerance(side.k1, side.k2, hl, side.fit_rms)
@@ -300,46 +306,75 @@ def screen_library(
         with np.errstate(divide="ignore", invalid="ignore"):
             mis = np.abs(sites.K[hits] - K) / tol_K + np.abs(sites.H[hits] - H) / tol_H
         mis = np.nan_to_num(mis, nan=np.inf)
-        order = np.lexsort((mis, sites.model[hits]))
-        hits = hits[order]
-        keys = np.column_stack(
-            [sites.model[hits].astype(np.int64), np.floor(sites.points[hits] / cell).astype(np.int64)]
-        )
-        _, first = np.unique(keys, axis=0, return_index=True)
-        cand_site.append(hits[np.sort(first)])
-        cand_side.append(np.full(len(first), s, dtype=np.int64))
+        # Best (K, H) match first within each model, so that a cell's first hit is its best.
+        hits = hits[np.lexsort((mis, sites.model[hits]))]
+        hit_site.append(hits)
+        hit_side.append(np.full(len(hits), s, dtype=np.int64))
     est = np.full(m, np.nan)
     best_side = np.zeros(m, dtype=np.int64)
     best_site = np.full(m, -1, dtype=np.int64)
     best_phi = np.zeros(m)
+    best_shift = np.zeros((m, 2))
     n_cand = np.zeros(m, dtype=np.int64)
-    if cand_site:
-        cands = np.concatenate(cand_site)
-        sides_of = np.concatenate(cand_side)
-        err, phi = _candidate_errors(touch, geometry, sites, cands, sides_of, radius)
+    if hit_site:
+        hits = np.concatenate(hit_site)
+        sides_of_hit = np.concatenate(hit_side)
+        # Coarse cells: one candidate each (its best match).
+        cell_of = _cells(sites, hits, sides_of_hit, cell)
+        first = _first_of_each(cell_of)
+        cands, sides_of = hits[first], sides_of_hit[first]
+        err, phi, shift = _candidate_errors(
+            touch, geometry, sites, cands, sides_of, radius, cell
+        )
         cm = sites.model[cands]
         n_cand = np.bincount(cm, minlength=m)
-        order = np.lexsort((err, cm))
-        first = order[np.unique(cm[order], return_index=True)[1]]
-        est[cm[first]] = err[first]
-        best_side[cm[first]] = sides_of[first]
+        best = _best_per_model(cm, err, 1)
+        est[cm[best]] = err[best]
+        best_side[cm[best]] = sides_of[best]
         offsets = np.concatenate([[0], np.cumsum(np.bincount(sites.model, minlength=m))])
-        best_site[cm[first]] = cands[first] - offsets[cm[first]]
-        best_phi[cm[first]] = phi[first]
+        best_site[cm[best]] = cands[best] - offsets[cm[best]]
+        best_phi[cm[best]] = phi[best]
+        best_shift[cm[best]] = shift[best]
     return LibraryScreen(
         estimates=est,
         judged=np.isfinite(est),
         side=best_side,
         site=best_site,
         phi=best_phi,
+        shift=best_shift,
         candidates=n_cand,
         raw_hits=raw_hits,
         seconds=time.perf_counter() - t0,
     )
 
 
-def _candidate_errors(touch, geometry, sites, cands, sides_of, radius):
-    """Each candidate's least mean distance over the phi grid, and its angle."""
+def _cells(sites: LibrarySites, hits: np.ndarray, side: np.ndarray, size: float) -> np.ndarray:
+    """One integer per (model, side, cell of the given size) of each hit."""
+    cell = np.floor(sites.points[hits] / size).astype(np.int64)
+    cell -= cell.min(axis=0)
+    dims = cell.max(axis=0) + 1
+    key = sites.model[hits].astype(np.int64) * 2 + side
+    for d in range(3):
+        key = key * int(dims[d]) + cell[:, d]
+    return key
+
+
+def _first_of_each(keys: np.ndarray) -> np.ndarray:
+    """Indices of the first occurrence of each distinct key, in their order."""
+    return np.sort(np.unique(keys, return_index=True)[1])
+
+
+def _best_per_model(model: np.ndarray, err: np.ndarray, k: int) -> np.ndarray:
+    """Indices of the ``k`` least errors of each model."""
+    order = np.lexsort((err, model))
+    start = np.unique(model[order], return_index=True)[1]
+    rank = np.arange(len(order)) - np.repeat(start, np.diff(np.append(start, len(order))))
+    return order[rank < k]
+
+
+def _candidate_errors(touch, geometry, sites, cands, sides_of, radius, cell):
+    """Each candidate's least mean gap over the phi grid and the contact's shifts within
+    its cell, its angle and its shift."""
     k = defaults.SCREEN_NEIGHBOURS
     cm = sites.model[cands]
     # The neighbours: the sites thinned so that about k of them fall within the reach,
@@ -361,18 +396,36 @@ def _candidate_errors(touch, geometry, sites, cands, sides_of, radius):
     grid = np.arange(steps) * (2.0 * np.pi / steps)
     Rz = rotation_z(grid)  # (s, 3, 3)
     subset = even_subsample(int(touch.n_points), defaults.SCREEN_POINTS)
-    data, project = [], []
+    n_sub = len(subset)
+    # The data's contact placed on a grid over the candidate's cell (one field serves
+    # them all; the affine removal absorbs the field's height and slope there).
+    g = defaults.SCREEN_SHIFTS
+    offs = (np.arange(g) - (g - 1) / 2.0) * (cell / g)
+    shifts = np.array([(u, v) for u in offs for v in offs])  # (h, 2)
+    designs = []
     for side in _sides(geometry):
         local = (touch.points[subset] - side.point) @ side.frame  # (n, 3)
-        placed = np.einsum("sij,nj->sni", Rz, local)  # (s, n, 3)
-        data.append(placed.reshape(-1, 3))
-        # The gaps' part that a small tilt and lift of the data explain (an affine function
-        # of the placed (x, y)) is removed: what is left is the candidate's shape mismatch.
-        X = np.concatenate([np.ones(placed.shape[:2] + (1,)), placed[..., :2]], axis=2)
-        project.append(np.eye(len(subset)) - X @ np.linalg.pinv(X))  # (s, n, n)
-    n_sub = len(subset)
+        placed = np.einsum("sij,nj->sni", Rz, local) / radius  # (s, n, 3), field units
+        xy = placed[None, :, :, :2] + shifts[:, None, None, :] / radius  # (h, s, n, 2)
+        phi_m = monomials(xy, defaults.SCREEN_DEGREE)  # (h, s, n, m)
+        z = np.broadcast_to(placed[None, :, :, 2], xy.shape[:3])
+        if defaults.SCREEN_AFFINE:
+            # The gaps' part that a small tilt and lift of the data explain (affine in the
+            # placed (x, y), the same span at every shift) is removed: P (z - M g) with P
+            # the projection off that span, so P z and P M are made once per touch.
+            X = np.concatenate([np.ones(placed.shape[:2] + (1,)), placed[..., :2]], axis=2)
+            P = np.eye(n_sub) - X @ np.linalg.pinv(X)  # (s, n, n)
+            z = np.matmul(P[None], z[..., None])[..., 0]
+            phi_m = np.matmul(P[None], phi_m)
+        designs.append(
+            (
+                np.ascontiguousarray(z.reshape(-1, 1), dtype=np.float32),
+                np.ascontiguousarray(phi_m.reshape(-1, phi_m.shape[-1]), dtype=np.float32),
+            )
+        )
     err = np.empty(len(cands))
     phi = np.empty(len(cands))
+    shift = np.empty((len(cands), 2))
     chunk = defaults.SCREEN_CHUNK
     for a in range(0, len(cands), chunk):
         b = min(a + chunk, len(cands))
@@ -389,15 +442,16 @@ def _candidate_errors(touch, geometry, sites, cands, sides_of, radius):
             sel = np.flatnonzero(sides_of[a:b] == s)
             if len(sel) == 0:
                 continue
-            d = heightfield_gaps(coef[sel], data[s], radius, degree=defaults.SCREEN_DEGREE)
-            d = d.reshape(steps, n_sub, len(sel))
-            if defaults.SCREEN_AFFINE:
-                d = np.matmul(project[s], d)
-            mean = np.abs(d).mean(axis=1)  # (s, c)
+            z, design = designs[s]
+            gaps = z - design @ coef[sel].T.astype(np.float32)  # (h s n, c), field units
+            np.abs(gaps, out=gaps)
+            mean = gaps.reshape(len(shifts) * steps, n_sub, len(sel)).mean(axis=1)
+            mean *= radius
             j = np.argmin(mean, axis=0)
             err[a + sel] = mean[j, np.arange(len(sel))]
-            phi[a + sel] = grid[j]
-    return err, phi
+            phi[a + sel] = grid[j % steps]
+            shift[a + sel] = shifts[j // steps]
+    return err, phi, shift
 
 
 def screen_survivors(
@@ -483,7 +537,8 @@ def screened_registration(
     t = model.curvature
     v = int(screen.site[i])
     frame = _frames(t.normals[v][None, :], t.dir1[v][None, :])[0]
-    origin = SurfacePoint(point=np.array(t.points[v]), frame=frame)
+    shift = frame[:, :2] @ screen.shift[i]  # in the tangent plane: the refinement lands it
+    origin = SurfacePoint(point=np.array(t.points[v]) + shift, frame=frame)
     T0 = superposition(side.point, side.frame, origin, float(screen.phi[i]))
     ref = refine_rigid(model, touch.points, T0, max_iter=defaults.SCREEN_PRUNED_ITERATIONS)
     pose = refined_pose(model, ref, geometry.point)
