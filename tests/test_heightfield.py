@@ -88,9 +88,7 @@ def test_batched_gaps_match_one_field_at_a_time():
     for c in range(7):
         for p in range(25):
             x, y, z = pts[p] / 0.4
-            g = sum(
-                coef[c, k] * x**i * y**j for k, (i, j) in enumerate(monomial_exponents(4))
-            )
+            g = sum(coef[c, k] * x**i * y**j for k, (i, j) in enumerate(monomial_exponents(4)))
             assert out[p, c] == pytest.approx(0.4 * (z - g), abs=1e-12)
             assert dist[p, c] == pytest.approx(abs(0.4 * (z - g)), abs=1e-12)
 
@@ -109,7 +107,7 @@ def test_samples_facing_away_are_left_out():
 
 
 @pytest.mark.parametrize(
-    "kwargs, match",
+    ("kwargs", "match"),
     [
         ({"centers": np.zeros((2, 2))}, "centers"),
         ({"frames": np.zeros((1, 3, 3))}, "frames"),

@@ -74,9 +74,7 @@ def _measure(library, touches, label, rows):
                 "close": len(close),
                 "close_max": max((est[m] / rms[m] for m in close), default=float("nan")),
                 "all_max": max((est[m] / rms[m] for m in judged), default=float("nan")),
-                "leader": (
-                    min(rms.values()) / est[best_est] if best_est else float("nan")
-                ),
+                "leader": (min(rms.values()) / est[best_est] if best_est else float("nan")),
                 "leader_own": rms[best_est] / est[best_est] if best_est else float("nan"),
                 "pruned": sum(not kept[m] for m in sites.names),
                 "pruned_close": sum(not kept[m] for m in close),

@@ -47,9 +47,7 @@ def monomial_exponents(degree: int) -> np.ndarray:
         If ``degree`` is not an integer >= 1.
     """
     degree = check_int(degree, "degree", minimum=1)
-    return np.array(
-        [(d - j, j) for d in range(degree + 1) for j in range(d + 1)], dtype=np.int64
-    )
+    return np.array([(d - j, j) for d in range(degree + 1) for j in range(d + 1)], dtype=np.int64)
 
 
 def monomials(xy: np.ndarray, degree: int, derivative: int | None = None) -> np.ndarray:

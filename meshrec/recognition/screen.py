@@ -83,8 +83,9 @@ class LibrarySites:
     K, H : (N,) float64
         Each site's own (K, H) (0 outside the table).
     rank : (N,) float64
-        A seeded uniform number per site: the sites with ``rank < f`` are an even random
-        fraction ``f`` of them (the thinning of the neighbours).
+        A seeded uniform number per site (seeded by ``defaults.SCREEN_SEED`` and the
+        model's site count, not its place in the library): the sites with ``rank < f`` are
+        an even random fraction ``f`` of them (the thinning of the neighbours).
     area_per_site : (m,) float64
         Each model's surface area over its sites.
     screened : (m,) bool
@@ -155,7 +156,11 @@ class LibrarySites:
             screened.append(probe_radius_of(m) == 0.0 and not bool(np.any(t.crease)))
             closed.append(bool(m.mesh.closed))
         arrays = {k: np.concatenate(v) for k, v in parts.items()}
-        rank = np.random.default_rng(defaults.SCREEN_SEED).random(len(arrays["model"]))
+        # Each model's ranks from its own site count only: the same whatever the order.
+        seed = defaults.SCREEN_SEED
+        rank = np.concatenate(
+            [np.random.default_rng([seed, len(k)]).random(len(k)) for k in parts["K"]]
+        )
         return cls(
             names=tuple(m.name for m in models),
             rank=rank,
@@ -257,9 +262,7 @@ def _sides(geometry: LocalGeometry) -> tuple[LocalGeometry, LocalGeometry]:
     return geometry, geometry.flipped()
 
 
-def screen_library(
-    touch: TouchData, geometry: LocalGeometry, sites: LibrarySites
-) -> LibraryScreen:
+def screen_library(touch: TouchData, geometry: LocalGeometry, sites: LibrarySites) -> LibraryScreen:
     """Estimate every model's best fit of the touch at once (see the module's text).
 
     Parameters
@@ -290,7 +293,7 @@ def screen_library(
     cell = defaults.SCREEN_CELL_FRACTION * hl
     two_sides = ~sites.closed if touch.normal is not None else np.ones(m, dtype=bool)
     raw_hits = np.zeros(m, dtype=np.int64)
-    hit_site, hit_side, hit_cell = [], [], []
+    hit_site, hit_side = [], []
     for s, side in enumerate(_sides(geometry)):
         use_model = sites.screened & (two_sides if s == 1 else True)
         tol_K, tol_H = curvature_tolerance(side.k1, side.k2, hl, side.fit_rms)
@@ -323,9 +326,7 @@ def screen_library(
         cell_of = _cells(sites, hits, sides_of_hit, cell)
         first = _first_of_each(cell_of)
         cands, sides_of = hits[first], sides_of_hit[first]
-        err, phi, shift = _candidate_errors(
-            touch, geometry, sites, cands, sides_of, radius, cell
-        )
+        err, phi, shift = _candidate_errors(touch, geometry, sites, cands, sides_of, radius, cell)
         cm = sites.model[cands]
         n_cand = np.bincount(cm, minlength=m)
         best = _best_per_model(cm, err, 1)
@@ -413,7 +414,7 @@ def _candidate_errors(touch, geometry, sites, cands, sides_of, radius, cell):
             # The gaps' part that a small tilt and lift of the data explain (affine in the
             # placed (x, y), the same span at every shift) is removed: P (z - M g) with P
             # the projection off that span, so P z and P M are made once per touch.
-            X = np.concatenate([np.ones(placed.shape[:2] + (1,)), placed[..., :2]], axis=2)
+            X = np.concatenate([np.ones((*placed.shape[:2], 1)), placed[..., :2]], axis=2)
             P = np.eye(n_sub) - X @ np.linalg.pinv(X)  # (s, n, n)
             z = np.matmul(P[None], z[..., None])[..., 0]
             phi_m = np.matmul(P[None], phi_m)
@@ -435,8 +436,13 @@ def _candidate_errors(touch, geometry, sites, cands, sides_of, radius, cell):
         if miss.any():
             nbn[miss] = -frames[a:b, :, 2][np.nonzero(miss)[0]]  # left out of the fit
         coef = fit_heightfields(
-            sites.points[cands[a:b]], frames[a:b], nbp, nbn, radius,
-            degree=defaults.SCREEN_DEGREE, slope_weight=defaults.SCREEN_SLOPE_WEIGHT,
+            sites.points[cands[a:b]],
+            frames[a:b],
+            nbp,
+            nbn,
+            radius,
+            degree=defaults.SCREEN_DEGREE,
+            slope_weight=defaults.SCREEN_SLOPE_WEIGHT,
         )
         for s in (0, 1):
             sel = np.flatnonzero(sides_of[a:b] == s)
