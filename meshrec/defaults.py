@@ -598,8 +598,9 @@ SCREEN_CHUNK = 1024
 SCREEN_SEED = 0
 #: A model's rms is taken to be at least its screen estimate over this (see SCREEN_*
 #: measurements in reports/screen.md).
-SCREEN_GAIN = 2.0
-#: The leaders' rms is taken to be at most the least screen estimate times this.
-SCREEN_LEADER_GAIN = 2.0
+SCREEN_GAIN = 2.5
+#: The screen's leaders (least estimates) registered in full before it prunes: the least
+#: rms they reach bounds the best model's (no gain needed on that side).
+SCREEN_LEADERS = 2
 #: Rigid-refinement steps on all the points for a model the screen pruned.
 SCREEN_PRUNED_ITERATIONS = 3

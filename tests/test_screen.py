@@ -16,6 +16,7 @@ from meshrec.recognition.screen import (
     LibraryScreen,
     LibrarySites,
     library_sites,
+    screen_leaders,
     screen_library,
     screen_survivors,
     screened_registration,
@@ -48,7 +49,9 @@ def test_the_true_model_is_judged_and_never_pruned(surfaces, touches):
         i = sites.names.index(name)
         assert screen.judged[i], name
         rec_noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
-        keep = screen_survivors(screen, int(touch.n_points), rec_noise)
+        # The leader bound: the true model's own full search (the tightest a leader gives).
+        lead = register(touch, surfaces[name], geometry=geometry).rms
+        keep = screen_survivors(screen, int(touch.n_points), rec_noise, lead)
         assert keep[i], (name, screen.estimates)
         # The estimate of the true model is near the noise (the curves fit it).
         assert screen.estimates[i] < 3.0 * rec_noise
@@ -63,8 +66,10 @@ def test_the_screen_prunes_a_clearly_wrong_model(surfaces, touches):
     assert name == "ellipsoid"
     screen = screen_library(touch, geometry, sites)
     noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
-    keep = screen_survivors(screen, int(touch.n_points), noise)
+    lead = register(touch, surfaces["ellipsoid"], geometry=geometry).rms
+    keep = screen_survivors(screen, int(touch.n_points), noise, lead)
     assert keep[sites.names.index("ellipsoid")]
+    assert screen_leaders(screen, sites.names, 1).tolist() == [sites.names.index("ellipsoid")]
     assert not keep[sites.names.index("elliptic_paraboloid")]
     assert keep[~screen.judged].all()
     full = register(touch, surfaces["elliptic_paraboloid"], geometry=geometry)
@@ -104,7 +109,9 @@ def test_bad_arguments_are_refused(surfaces, touches):
     with pytest.raises(TypeError, match="models"):
         LibrarySites.from_models(["not a model"])
     with pytest.raises(TypeError, match="screen"):
-        screen_survivors("not a screen", 10, 0.01)
+        screen_survivors("not a screen", 10, 0.01, 0.01)
+    with pytest.raises(TypeError, match="screen"):
+        screen_leaders("not a screen", ["a"], 1)
     with pytest.raises(TypeError, match="sites"):
         screen_library(touches[0][1], touches[0][2], "not sites")
     name, touch, geometry = touches[0]
@@ -114,6 +121,22 @@ def test_bad_arguments_are_refused(surfaces, touches):
     with pytest.raises(ValueError, match="judged"):
         screened_registration(touch, surfaces[name], geometry, screen, bad)
     assert isinstance(screen, LibraryScreen)
+    n = int(touch.n_points)
+    with pytest.raises(ValueError, match="n_points"):
+        screen_survivors(screen, 0, 0.01, 0.01)
+    with pytest.raises(ValueError, match="noise"):
+        screen_survivors(screen, n, -1.0, 0.01)
+    with pytest.raises(ValueError, match="leader_rms"):
+        screen_survivors(screen, n, 0.01, float("nan"))
+    with pytest.raises(ValueError, match="screen_gain"):
+        screen_survivors(screen, n, 0.01, 0.01, screen_gain=0.5)
+    with pytest.raises(ValueError, match="log_ratio"):
+        screen_survivors(screen, n, 0.01, 0.01, log_ratio=1.0)
+    with pytest.raises(ValueError, match="names"):
+        screen_leaders(screen, ["a"], 1)
+    with pytest.raises(ValueError, match="k"):
+        screen_leaders(screen, surfaces.names, 0)
+    assert screen_survivors(screen, n, 0.01, None).all()
 
 
 @pytest.mark.slow

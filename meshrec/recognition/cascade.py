@@ -233,28 +233,46 @@ def cascade_register(
         noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
     models = list(models)
     out: list[Registration | None] = [None] * len(models)
+    first: dict[int, CoarseRegistration] = {}
     stay = list(range(len(models)))
     if len(models) >= defaults.SCREEN_MIN_MODELS:
-        # The library-wide screen first (imported here: it builds on this module's rule).
+        # The library-wide screen first (imported here: it builds on the scores' rule as
+        # this module does). Its leaders are registered in full; the least rms they reach
+        # bounds the best model's, and the models that cannot come near it are pruned.
         from meshrec.recognition.screen import (
             library_sites,
+            screen_leaders,
             screen_library,
             screen_survivors,
             screened_registration,
         )
 
         screen = screen_library(touch, geometry, library_sites(models))
-        passed = screen_survivors(screen, int(touch.n_points), noise)
-        stay = [i for i in stay if passed[i]]
+        names = [m.name for m in models]
+        rms = []
+        for i in screen_leaders(screen, names, defaults.SCREEN_LEADERS).tolist():
+            if progress is not None:
+                progress(i, len(models), names[i])
+            first[i] = register_coarse(touch, models[i], geometry)
+            if not first[i].rejected:
+                out[i] = register_full(models[i], first[i], method=method, trace=trace)
+                rms.append(out[i].rms)
+        passed = screen_survivors(screen, int(touch.n_points), noise, min(rms) if rms else None)
+        stay = [i for i in stay if passed[i] or i in first]
         for i in np.flatnonzero(~passed):
-            out[i] = screened_registration(touch, models[i], geometry, screen, int(i))
+            if i not in first:
+                out[i] = screened_registration(touch, models[i], geometry, screen, int(i))
     coarse = []
     for i in stay:
-        if progress is not None:
-            progress(i, len(models), models[i].name)
-        coarse.append(register_coarse(touch, models[i], geometry))
+        if i not in first:
+            if progress is not None:
+                progress(i, len(models), models[i].name)
+            first[i] = register_coarse(touch, models[i], geometry)
+        coarse.append(first[i])
     keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
     for i, c, k in zip(stay, coarse, keep, strict=True):
+        if out[i] is not None:
+            continue  # a leader of the screen, registered in full already
         if c.rejected or k:
             out[i] = register_full(models[i], c, method=method, trace=trace)
         else:

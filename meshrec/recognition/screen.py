@@ -15,18 +15,19 @@ once per library):
    KD-tree query over all models' sites, thinned to the curves' reach);
 4. a data subsample (``defaults.SCREEN_POINTS``) at ``defaults.SCREEN_PHI_STEPS`` angles
    about the normal and with its contact at ``defaults.SCREEN_SHIFTS`` squared places over
-   the candidate's cell, its gaps to every field less their affine part (a small tilt and
-   lift of the data), their mean in one matrix product per chunk
-   (:func:`~meshrec.model.heightfield.heightfield_distances`); a model's estimate is its
-   least.
+   the candidate's cell, its vertical gaps to every field less their affine part (a small
+   tilt and lift of the data), their mean, in one float32 matrix product per chunk; a
+   model's estimate is its least.
 
-:func:`screen_survivors` applies the cascade's rule
-(:func:`meshrec.recognition.cascade.cascade_survivors`) to the estimates with the screen's
-own measured gains; :func:`screened_registration` gives a model the screen prunes the pose
-of its best estimate, refined a few steps on all the points with the exact distances, so
-its error is an upper bound of what its registration would find and its probability only
-falls. Models the screen cannot judge (seen through a ball-tipped probe, or with sharp
-edges, whose fields would straddle a crease) always survive it.
+:func:`screen_leaders` names the few models with the least estimates: their own
+registrations run first, and the least rms they reach bounds the best model's.
+:func:`screen_survivors` applies the scores' rule, as the cascade does, to the estimates
+(a model's rms taken to be at least its estimate over a measured gain) against that rms.
+:func:`screened_registration` gives a model the screen prunes the pose of its best
+estimate, refined a few steps on all the points with the exact distances, so its error is
+an upper bound of what its registration would find and its probability only falls.
+Models the screen cannot judge (seen through a ball-tipped probe, or with sharp edges,
+whose fields would straddle a crease) always survive it.
 """
 
 from __future__ import annotations
@@ -41,12 +42,12 @@ from scipy.spatial import cKDTree
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
-from meshrec.io.checks import check_instance
+from meshrec.io.checks import check_instance, check_int
 from meshrec.io.touch import TouchData
 from meshrec.model.heightfield import fit_heightfields, monomials
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_radius_of
-from meshrec.recognition.cascade import cascade_survivors
+from meshrec.recognition.scoring import effective_points
 from meshrec.registration.candidates import curvature_tolerance
 from meshrec.registration.chart import SurfacePoint, rotation_z
 from meshrec.registration.poses import refined_pose
@@ -59,6 +60,7 @@ __all__ = [
     "LibraryScreen",
     "LibrarySites",
     "library_sites",
+    "screen_leaders",
     "screen_library",
     "screen_survivors",
     "screened_registration",
@@ -460,19 +462,54 @@ def _candidate_errors(touch, geometry, sites, cands, sides_of, radius, cell):
     return err, phi, shift
 
 
+def screen_leaders(screen: LibraryScreen, names: Sequence[str], k: int) -> np.ndarray:
+    """The ``k`` judged models with the least estimates (ties by name: order-free).
+
+    Parameters
+    ----------
+    screen : LibraryScreen
+    names : sequence of str
+        The screen's models' names, in its order.
+    k : int
+        How many (>= 1).
+
+    Returns
+    -------
+    (j,) int
+        Their indices, least estimate first (``j = min(k, judged)``).
+
+    Raises
+    ------
+    TypeError
+        If ``screen`` is not a LibraryScreen.
+    ValueError
+        If ``names`` does not name every model of the screen or ``k`` is below 1.
+    """
+    check_instance(screen, LibraryScreen, "screen")
+    k = check_int(k, "k", minimum=1)
+    if len(names) != len(screen.estimates):
+        raise ValueError(f"names must name {len(screen.estimates)} models, got {len(names)}")
+    judged = np.flatnonzero(screen.judged)
+    order = sorted(judged.tolist(), key=lambda i: (screen.estimates[i], names[i]))
+    return np.array(order[:k], dtype=np.int64)
+
+
 def screen_survivors(
     screen: LibraryScreen,
     n_points: int,
     noise: float,
+    leader_rms: float | None,
     screen_gain: float = defaults.SCREEN_GAIN,
-    leader_gain: float = defaults.SCREEN_LEADER_GAIN,
     log_ratio: float = defaults.JOINT_PRUNE_LOG_RATIO,
 ) -> np.ndarray:
     """Which models go on to their own registration stages.
 
-    The cascade's rule (:func:`meshrec.recognition.cascade.cascade_survivors`) on the
-    screen's estimates with its own gains; a model the screen did not judge always
-    survives.
+    The scores' rule, as the cascade's (:func:`meshrec.recognition.cascade.cascade_survivors`):
+    a model's log-likelihood is ``-n_eff rms^2 / (2 noise^2)``; its best conceivable rms is
+    its estimate over ``screen_gain``; the best model's rms is at most ``leader_rms``, an
+    rms a registration reached (of :func:`screen_leaders`' models: no gain needed). A
+    model whose best conceivable log-likelihood is below the leader's worst by more than
+    ``-log_ratio`` is pruned. A model the screen did not judge always survives.
 
     Parameters
     ----------
@@ -481,8 +518,13 @@ def screen_survivors(
         Data points of the touch.
     noise : float
         The touch's noise estimate.
-    screen_gain, leader_gain, log_ratio : float
-        As :func:`~meshrec.recognition.cascade.cascade_survivors`.
+    leader_rms : float or None
+        The least rms the registrations of the leaders reached (None: no leader was
+        registered, every model survives).
+    screen_gain : float
+        A model's rms is taken to be at least its estimate over this (>= 1).
+    log_ratio : float
+        Prune below this log-likelihood ratio to the leader's (< 0).
 
     Returns
     -------
@@ -493,12 +535,27 @@ def screen_survivors(
     TypeError
         If ``screen`` is not a LibraryScreen.
     ValueError
-        As :func:`~meshrec.recognition.cascade.cascade_survivors`.
+        If ``n_points`` is not a positive integer, ``noise`` or ``leader_rms`` not
+        positive and finite (``leader_rms`` may be 0), ``screen_gain`` below 1 or
+        ``log_ratio`` not negative.
     """
     check_instance(screen, LibraryScreen, "screen")
-    est = [float(e) if j else None for e, j in zip(screen.estimates, screen.judged, strict=True)]
-    keep = cascade_survivors(est, n_points, noise, screen_gain, leader_gain, log_ratio)
-    return keep | ~screen.judged
+    n_points = check_int(n_points, "n_points", minimum=1)
+    if not (np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be positive and finite, got {noise!r}")
+    if not (np.isfinite(screen_gain) and screen_gain >= 1):
+        raise ValueError(f"screen_gain must be a finite number >= 1, got {screen_gain!r}")
+    if not (np.isfinite(log_ratio) and log_ratio < 0):
+        raise ValueError(f"log_ratio must be negative and finite, got {log_ratio!r}")
+    if leader_rms is None:
+        return np.ones(len(screen.judged), dtype=bool)
+    if not (np.isfinite(leader_rms) and leader_rms >= 0):
+        raise ValueError(f"leader_rms must be finite and >= 0, got {leader_rms!r}")
+    half_n = 0.5 * effective_points(n_points)
+    worst_leader = -half_n * (leader_rms / noise) ** 2
+    est = np.where(screen.judged, screen.estimates, 0.0)
+    best_conceivable = -half_n * (est / screen_gain / noise) ** 2
+    return (best_conceivable - worst_leader >= log_ratio) | ~screen.judged
 
 
 def screened_registration(
