@@ -131,6 +131,7 @@ def measure(n: int, args) -> dict:
         row["serial_s"] = time.perf_counter() - t0
         row["serial_cpu_s"] = time.process_time() - c0
         row["serial_best"] = rec.best.model if rec.best is not None else None
+        row["searched"] = sum(r.searches > 0 for r in rec.ranking)  # full searches run
         row["verdict"] = rec.verdict
         if workers is not None:
             t0 = time.perf_counter()
