@@ -20,6 +20,11 @@ error times ``defaults.CASCADE_LEADER_GAIN``. A model whose best conceivable
 log-likelihood is below the leaders' worst by more than ``-defaults.JOINT_PRUNE_LOG_RATIO``
 (e^-14: far below any plausible set) is pruned. The rule looks at the set of screened
 errors only, so it does not depend on the order of the models.
+
+With ``defaults.SCREEN_MIN_MODELS`` models or more, :func:`cascade_register` first runs the
+library-wide screen (:mod:`meshrec.recognition.screen`): its leaders are registered in
+full, the models it prunes get its own pruned registration, and only the others enter the
+stages above.
 """
 
 from __future__ import annotations

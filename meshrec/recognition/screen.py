@@ -214,8 +214,9 @@ class LibraryScreen:
     Attributes
     ----------
     estimates : (m,) float
-        Each model's least mean distance of the data subsample to the height-fields of
-        its candidates; NaN for a model with no candidate or not screened.
+        Each model's least mean gap of the data subsample to the height-fields of its
+        candidates (vertical, less its affine part), model units; NaN for a model with no
+        candidate or not screened.
     judged : (m,) bool
         Models the screen judged (screened, with candidates).
     side : (m,) int
