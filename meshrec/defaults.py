@@ -589,3 +589,45 @@ BLOB_ANISOTROPY = (0.7, 1.3)
 PARALLEL_MIN_MODELS = 8
 PARALLEL_CHUNKS_PER_WORKER = 4
 DASK_CONNECT_SECONDS = 10.0
+
+#: The library-wide screen (meshrec.recognition.screen), run before any model's own
+#: stages when the cascade is on and the library holds at least this many models (below
+#: it the per-model first stages are cheap enough and the screen's fixed cost is not paid).
+SCREEN_MIN_MODELS = 8
+#: Reach of the screen's local height-fields, times the curves' half-length (the data lie
+#: within about one half-length of the contact; a margin for the spread of candidates).
+SCREEN_REACH = 1.6
+#: The screen spreads each model's lookup hits over cells of this size, times the curves'
+#: half-length (the best (K, H) match per cell becomes a candidate).
+SCREEN_CELL_FRACTION = 0.8
+#: The data's contact is placed on a grid of this many by this many points over each
+#: candidate's cell (one height-field serves them all).
+SCREEN_SHIFTS = 3
+#: Neighbouring sites (their heights and slopes) each height-field is fitted to.
+SCREEN_NEIGHBOURS = 32
+#: Degree of the height-field polynomials (4: a sphere's quartic term over the reach).
+SCREEN_DEGREE = 4
+#: Weight of a neighbour's slope equations against its height equation.
+SCREEN_SLOPE_WEIGHT = 1.0
+#: Data points (an even subsample) and angles about the normal the screen tries.
+SCREEN_POINTS = 16
+SCREEN_PHI_STEPS = 24
+#: Remove from the screen's gaps their affine part in the placed (x, y) (a small tilt and
+#: lift of the data, which the registration's refinement makes).
+SCREEN_AFFINE = True
+#: Candidates per chunk of the screen's fits and products (memory: a few tens of MB).
+SCREEN_CHUNK = 1024
+#: Seed of the sites' thinning ranks (the screen is deterministic).
+SCREEN_SEED = 0
+#: A model's rms is taken to be at least its screen estimate over this. Measured with
+#: tools/screen_gains.py (reports/screen_gains.md: 40 touches on 30 blobs, the paper
+#: surfaces and bench.shape_set(20)): on the pairs whose full-search log-likelihood was
+#: within JOINT_PRUNE_LOG_RATIO of the leader's the estimate over the full search's rms was
+#: at most 2.06 (a true model missed by the cells, e.g. on the monkey saddle; median about
+#: 0.8); 2.5 is a margin of 1.2.
+SCREEN_GAIN = 2.5
+#: The screen's leaders (least estimates) registered in full before it prunes: the least
+#: rms they reach bounds the best model's (no gain needed on that side).
+SCREEN_LEADERS = 2
+#: Rigid-refinement steps on all the points for a model the screen pruned.
+SCREEN_PRUNED_ITERATIONS = 3

@@ -131,6 +131,7 @@ def measure(n: int, args) -> dict:
         row["serial_s"] = time.perf_counter() - t0
         row["serial_cpu_s"] = time.process_time() - c0
         row["serial_best"] = rec.best.model if rec.best is not None else None
+        row["searched"] = sum(r.searches > 0 for r in rec.ranking)  # full searches run
         row["verdict"] = rec.verdict
         if workers is not None:
             t0 = time.perf_counter()
@@ -236,15 +237,19 @@ def plot(results: list[dict], path: Path, starts: int) -> None:
     import matplotlib.pyplot as plt
 
     rows = sorted((r for r in results if r["touches"]), key=lambda r: r["models"])
-    n = [r["models"] for r in rows]
 
     def med(key):
-        return [statistics.median(x[key] for x in r["touches"]) for r in rows]
+        """The sizes measured with ``key`` (not every run measures workers or ICP), and
+        their medians."""
+        have = [r for r in rows if key in r["touches"][0]]
+        return [r["models"] for r in have], [
+            statistics.median(x[key] for x in r["touches"]) for r in have
+        ]
 
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    ax.plot(n, med("serial_s"), "o-", label="meshrec, serial")
-    if rows and "workers_s" in rows[0]["touches"][0]:
-        ax.plot(n, med("workers_s"), "s-", label="meshrec, --workers")
+    ax.plot(*med("serial_s"), "o-", label="meshrec, serial")
+    if any("workers_s" in r["touches"][0] for r in rows):
+        ax.plot(*med("workers_s"), "s-", label="meshrec, --workers")
     cpu = [r for r in rows if "serial_cpu_s" in r["touches"][0]]
     if cpu:
         ax.plot(
@@ -254,10 +259,9 @@ def plot(results: list[dict], path: Path, starts: int) -> None:
             mfc="none",
             label="meshrec, serial: CPU time",
         )
-    if rows and "baseline_s" in rows[0]["touches"][0]:
+    if any("baseline_s" in r["touches"][0] for r in rows):
         ax.plot(
-            n,
-            med("baseline_s"),
+            *med("baseline_s"),
             "^--",
             label=f"Open3D multi-start ICP x{starts} (per model x models)",
         )

@@ -20,6 +20,11 @@ error times ``defaults.CASCADE_LEADER_GAIN``. A model whose best conceivable
 log-likelihood is below the leaders' worst by more than ``-defaults.JOINT_PRUNE_LOG_RATIO``
 (e^-14: far below any plausible set) is pruned. The rule looks at the set of screened
 errors only, so it does not depend on the order of the models.
+
+With ``defaults.SCREEN_MIN_MODELS`` models or more, :func:`cascade_register` first runs the
+library-wide screen (:mod:`meshrec.recognition.screen`): its leaders are registered in
+full, the models it prunes get its own pruned registration, and only the others enter the
+stages above.
 """
 
 from __future__ import annotations
@@ -231,16 +236,50 @@ def cascade_register(
         geometry = touch_geometry(touch)
     if noise is None:
         noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+    models = list(models)
+    out: list[Registration | None] = [None] * len(models)
+    first: dict[int, CoarseRegistration] = {}
+    stay = list(range(len(models)))
+    if len(models) >= defaults.SCREEN_MIN_MODELS:
+        # The library-wide screen first (imported here: it builds on the scores' rule as
+        # this module does). Its leaders are registered in full; the least rms they reach
+        # bounds the best model's, and the models that cannot come near it are pruned.
+        from meshrec.recognition.screen import (
+            library_sites,
+            screen_leaders,
+            screen_library,
+            screen_survivors,
+            screened_registration,
+        )
+
+        screen = screen_library(touch, geometry, library_sites(models))
+        names = [m.name for m in models]
+        rms = []
+        for i in screen_leaders(screen, names, defaults.SCREEN_LEADERS).tolist():
+            if progress is not None:
+                progress(i, len(models), names[i])
+            first[i] = register_coarse(touch, models[i], geometry)
+            if not first[i].rejected:
+                out[i] = register_full(models[i], first[i], method=method, trace=trace)
+                rms.append(out[i].rms)
+        passed = screen_survivors(screen, int(touch.n_points), noise, min(rms) if rms else None)
+        stay = [i for i in stay if passed[i] or i in first]
+        for i in np.flatnonzero(~passed):
+            if i not in first:
+                out[i] = screened_registration(touch, models[i], geometry, screen, int(i))
     coarse = []
-    for i, model in enumerate(models):
-        if progress is not None:
-            progress(i, len(models), model.name)
-        coarse.append(register_coarse(touch, model, geometry))
+    for i in stay:
+        if i not in first:
+            if progress is not None:
+                progress(i, len(models), models[i].name)
+            first[i] = register_coarse(touch, models[i], geometry)
+        coarse.append(first[i])
     keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
-    out = []
-    for model, c, k in zip(models, coarse, keep, strict=True):
+    for i, c, k in zip(stay, coarse, keep, strict=True):
+        if out[i] is not None:
+            continue  # a leader of the screen, registered in full already
         if c.rejected or k:
-            out.append(register_full(model, c, method=method, trace=trace))
+            out[i] = register_full(models[i], c, method=method, trace=trace)
         else:
-            out.append(pruned_registration(touch, model, c))
+            out[i] = pruned_registration(touch, models[i], c)
     return out
