@@ -370,6 +370,19 @@ LOOKUP_WIDEN_SCALE = 4.0
 #: 1.4e-3 to 4.3e-3 (fixed). A 32-section trimesh cylinder's facets pin the turn about its
 #: axis at about 0.03 (not reported free: the mesh, not the object, fixes it).
 POSE_FREE_RATIO = 5e-4
+#: Near-symmetries (meshrec.recognition.weak): at the best joint pose of several touches,
+#: the rigid Jacobian's motions with a singular value below this fraction of the largest
+#: are followed a long way for other basins. Three touches on the smooth part of a bumped
+#: sphere (bench.shape_set(9, seed=7), bumped_sphere_7_1) gave 0.016, 0.0073 and 0.0026:
+#: the joint search had ended 0.99 from the truth at an RMS 1.5% above the true basin's,
+#: which a turn of about 60 degrees along the weakest motion reaches.
+WEAK_MOTION_RATIO = 0.03
+#: At most this many weak motions are followed, weakest first.
+WEAK_MOTION_MOST = 2
+#: Turn angles (degrees) tried about a weak turn's axis.
+WEAK_TURN_ANGLES_DEG = (-135.0, -90.0, -45.0, 45.0, 90.0, 135.0, 180.0)
+#: Slides tried along a weak slide, in multiples of the points' RMS spread, either way.
+WEAK_SLIDE_STEPS = (1.0, 2.0, 4.0)
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
 POSE_TURN_FRACTION = 0.1

@@ -29,6 +29,7 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
 from meshrec.recognition.scoring import effective_points, fit_p_value
+from meshrec.recognition.weak import weak_motion_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import residuals
 from meshrec.registration.phi import bracket_minima
@@ -40,6 +41,7 @@ __all__ = [
     "JointFit",
     "candidate_seeds",
     "check_touch_sizes",
+    "explore_weak_motions",
     "first_touch_fit",
     "joint_poses",
     "log_likelihood_bound",
@@ -444,6 +446,68 @@ def search_pairs(
         fit.registration, seconds=previous.registration.seconds + fit.registration.seconds
     )
     return dataclasses.replace(fit, registration=reg)
+
+
+def explore_weak_motions(
+    touches: Sequence[TouchData],
+    model,
+    geometries: Sequence[LocalGeometry],
+    previous: JointFit,
+) -> JointFit:
+    """Refine again from poses a long way along the best pose's weakest motions.
+
+    On a nearly symmetric object the joint search can end in a basin a large turn away
+    from a better one (see :mod:`meshrec.recognition.weak`). The starts
+    (:func:`~meshrec.recognition.weak.weak_motion_starts`) are all refined jointly, coarse
+    to fine as :func:`joint_poses` does (the start nearest the better basin is often the
+    worst at its start: the bumps are then misplaced by the long turn), and the poses
+    found join the previous ones: the best pose only improves.
+
+    Parameters
+    ----------
+    touches : sequence of TouchData
+        All in one frame.
+    model : ModelIndex
+    geometries : sequence of LocalGeometry
+        One per touch.
+    previous : JointFit
+        The model's joint fit so far.
+
+    Returns
+    -------
+    JointFit
+        ``previous`` itself when it is rejected or its best pose has no weak motion.
+
+    Raises
+    ------
+    ValueError
+        If ``geometries`` does not match ``touches``.
+    """
+    if len(geometries) != len(touches):
+        raise ValueError(
+            f"geometries must hold one LocalGeometry per touch ({len(touches)}), got "
+            f"{len(geometries)}"
+        )
+    reg = previous.registration
+    if reg.rejected or reg.T_model_touch is None:
+        return previous
+    t0 = time.perf_counter()
+    points = np.vstack([t.points for t in touches])
+    starts = weak_motion_starts(model, points, reg.T_model_touch)
+    if not starts:
+        return previous
+    found = joint_poses(
+        model,
+        touches,
+        starts,
+        geometries[0],
+        best=len(starts),
+        start_ratio=float("inf"),
+    )
+    poses = distinct_poses(
+        sorted((*reg.poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
+    )
+    return _fit(model, touches, previous.single, poses, time.perf_counter() - t0, t0)
 
 
 def candidate_seeds(

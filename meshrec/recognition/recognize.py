@@ -22,6 +22,7 @@ from meshrec.recognition.edges import warn_sharp_edges
 from meshrec.recognition.freedom import PoseFreedom, pose_freedom, with_symmetries
 from meshrec.recognition.joint import (
     check_touch_sizes,
+    explore_weak_motions,
     first_touch_fit,
     log_likelihood_bound,
     pooled_noise,
@@ -600,6 +601,7 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
                 touches, model, geometries, upto=upto, previous=fit, method=method, noise=noise
             )
     _search_adequately(touches, models, geometries, fits, noise, n, method)
+    _explore_near_symmetries(touches, models, geometries, fits, noise, n)
     rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
     return _ranked(rec, [f.registration for f in fits.values()]), fits
 
@@ -649,6 +651,29 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
             if log_likelihood_bound(fit, touches, noise) >= leader - gap:
                 fit = search_pairs(touches, model, geometries, fit)
             fits[model.name] = fit
+
+
+def _explore_near_symmetries(touches, models, geometries, fits: dict, noise: float, n: int):
+    """Follow the weakest motions of the leading models' joint poses for better basins.
+
+    Every model within ``defaults.PAIR_SEARCH_GAP`` of the best log-likelihood (an
+    order-free set, taken before any is explored) is refined again from poses a long way
+    along its best pose's near-symmetries
+    (:func:`~meshrec.recognition.joint.explore_weak_motions`): on a nearly symmetric
+    object the joint search can end at a precise-looking pose a large turn away from the
+    right one. ``fits`` is updated in place.
+    """
+    names = list(fits)
+    ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
+    leader = float(np.max(ll))
+    near = [
+        m
+        for m in models
+        if not fits[m.name].registration.rejected
+        and ll[names.index(m.name)] >= leader - defaults.PAIR_SEARCH_GAP
+    ]
+    for model in near:
+        fits[model.name] = explore_weak_motions(touches, model, geometries, fits[model.name])
 
 
 # --------------------------------------------------------------------------- the verdict
