@@ -66,7 +66,7 @@ def test_points_over_a_box_corner_fix_every_motion(library):
 
 
 @pytest.mark.parametrize(
-    "points, T, kwargs, match",
+    ("points", "T", "kwargs", "match"),
     [
         (np.zeros((5, 3)), np.eye(4), {}, "points"),
         (np.zeros((8, 2)), np.eye(4), {}, "points"),
@@ -80,6 +80,7 @@ def test_points_over_a_box_corner_fix_every_motion(library):
 )
 def test_bad_input_raises(library, points, T, kwargs, match):
     if points is None:
-        points = np.random.default_rng(0).uniform(-0.1, 0.1, size=(10, 3)) + [0, 0, 0.8]
+        points = np.random.default_rng(0).uniform(-0.1, 0.1, size=(10, 3))
+        points[:, 2] += 0.8
     with pytest.raises(ValueError, match=match):
         weak_motion_starts(library["sphere"], points, T, **kwargs)
