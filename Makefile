@@ -26,7 +26,7 @@ demo: install
 		--truth $(OUT)/truth.json --seed $(SEED)
 	$(BIN)/meshrec recognize $(OUT)/touch.csv --models models/surfaces
 
-## test: lint and run the test suite without the tests marked slow (well under two minutes)
+## test: lint and run the test suite without the tests marked slow (4 to 9 minutes on 2 cores)
 test: install lint
 	$(BIN)/python -m pytest -q -m "not slow"
 
