@@ -23,6 +23,14 @@ differ, ``meshrec.bench.EXTRA_FAMILIES``), where a touch at random rarely decide
     .venv/bin/python tools/touches.py --sets 7 --families tipped_rod --loop-length 0.2 \
         --loop-noise 0.004 --out reports/touches_rods.md --figure docs/images/active_rods.png
 
+Three touches only (accuracy, pose against the oracle's, CPU time over one touch), a few
+minutes:
+
+    PYTHONPATH=. .venv/bin/python tools/touches.py --sets 5 6 --no-loop
+
+(``PYTHONPATH=.``: a script's own folder, not the working directory, starts ``sys.path``,
+so without it an installed meshrec is measured, not this checkout's.)
+
 Uses only meshrec's public API.
 """
 
