@@ -379,8 +379,10 @@ POSE_FREE_RATIO = 5e-4
 WEAK_MOTION_RATIO = 0.03
 #: At most this many weak motions are followed, weakest first.
 WEAK_MOTION_MOST = 2
-#: Turn angles (degrees) tried about a weak turn's axis.
-WEAK_TURN_ANGLES_DEG = (-135.0, -90.0, -45.0, 45.0, 90.0, 135.0, 180.0)
+#: Turn angles (degrees) tried about a weak turn's axis (60 degrees apart: on that bumped
+#: sphere the better basin was reached from -90 and from 180 degrees alike, and from 60
+#: degrees apart in 0.23 s of CPU against 0.31 s from 45 degrees apart).
+WEAK_TURN_ANGLES_DEG = (-120.0, -60.0, 60.0, 120.0, 180.0)
 #: Slides tried along a weak slide, in multiples of the points' RMS spread, either way.
 WEAK_SLIDE_STEPS = (1.0, 2.0, 4.0)
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
