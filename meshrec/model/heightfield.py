@@ -225,16 +225,7 @@ def heightfield_distances(
     ValueError
         If the shapes do not agree with ``degree`` or ``radius`` is not positive.
     """
-    coefficients = np.asarray(coefficients, dtype=np.float64)
-    local_points = np.asarray(local_points, dtype=np.float64)
-    m = len(monomial_exponents(degree))
-    if coefficients.ndim != 2 or coefficients.shape[1] != m:
-        raise ValueError(f"coefficients must be (c, {m}), got shape {coefficients.shape}")
-    if local_points.ndim != 2 or local_points.shape[1] != 3:
-        raise ValueError(f"local_points must be (p, 3), got shape {local_points.shape}")
-    radius = check_number(radius, "radius")
-    if not radius > 0:
-        raise ValueError(f"radius must be positive, got {radius!r}")
+    coefficients, local_points, radius = _checked(coefficients, local_points, radius, degree)
     s = local_points / radius
     G = coefficients.T
     gap = np.abs(s[:, 2:3] - monomials(s[:, :2], degree) @ G)
@@ -271,6 +262,14 @@ def heightfield_gaps(
     ValueError
         If the shapes do not agree with ``degree`` or ``radius`` is not positive.
     """
+    coefficients, local_points, radius = _checked(coefficients, local_points, radius, degree)
+    s = local_points / radius
+    return radius * (s[:, 2:3] - monomials(s[:, :2], degree) @ coefficients.T)
+
+
+def _checked(coefficients, local_points, radius, degree: int):
+    """The arguments of :func:`heightfield_distances` and :func:`heightfield_gaps` as
+    float64 arrays and a float, checked against each other."""
     coefficients = np.asarray(coefficients, dtype=np.float64)
     local_points = np.asarray(local_points, dtype=np.float64)
     m = len(monomial_exponents(degree))
@@ -281,5 +280,4 @@ def heightfield_gaps(
     radius = check_number(radius, "radius")
     if not radius > 0:
         raise ValueError(f"radius must be positive, got {radius!r}")
-    s = local_points / radius
-    return radius * (s[:, 2:3] - monomials(s[:, :2], degree) @ coefficients.T)
+    return coefficients, local_points, radius
