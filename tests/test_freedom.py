@@ -122,6 +122,7 @@ def test_touch_on_a_box_face_is_named_but_its_pose_is_ambiguous(box_and_ellipsoi
     assert rec.plausible == ("box",)
     assert "only box fits" in rec.reason
     assert "2 slides and 1 turn" in rec.reason
+    assert rec.pose_freedom.sigma == np.inf  # a free pose has no precision
 
 
 def test_touch_on_an_ellipsoid_is_recognised_with_a_fixed_pose(box_and_ellipsoid):
@@ -133,6 +134,16 @@ def test_touch_on_an_ellipsoid_is_recognised_with_a_fixed_pose(box_and_ellipsoid
     assert rec.best.model == "ellipsoid"
     assert rec.pose_freedom.free == 0
     assert rec.verdict == "recognised"
+    # how precisely: finite, and the pose found lies within a few sigma of the truth
+    sigma = rec.pose_freedom.sigma
+    assert 0.0 < sigma < 0.1
+    found = t.touch.points @ rec.best.T_model_touch[:3, :3].T + rec.best.T_model_touch[:3, 3]
+    true = t.touch.points @ t.T_model_touch[:3, :3].T + t.T_model_touch[:3, 3]
+    # modulo the ellipsoid's symmetries (half-turns about its axes: it is centred and
+    # axis-aligned), any of which the search may land on
+    turns = [np.diag(d) for d in ([1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1])]
+    error = min(np.linalg.norm(found @ S.T - true, axis=1).max() for S in turns)
+    assert error < 4.0 * sigma
 
 
 def _capped_cylinder_distance(radius, half_height):

@@ -285,7 +285,9 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
             )
     out.write(f"{rec.reason}\n")
     if rec.pose_freedom is not None:
-        out.write(f"pose: {rec.pose_freedom.description}\n")
+        sigma = rec.pose_freedom.sigma
+        known = f" (data points within about {sigma:.2g}, one sigma)" if np.isfinite(sigma) else ""
+        out.write(f"pose: {rec.pose_freedom.description}{known}\n")
     if rec.verdict == "recognised":
         what = rec.plausible[0]
     elif rec.verdict == "ambiguous" and len(rec.plausible) == 1 and rec.pose_freedom:

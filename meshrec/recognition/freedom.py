@@ -24,7 +24,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.io.checks import check_points
 
-__all__ = ["PoseFreedom", "pose_freedom", "with_symmetries"]
+__all__ = ["PoseFreedom", "pose_freedom", "pose_sigma", "with_symmetries"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,10 @@ class PoseFreedom:
         Per slide and per turn, whether it is a symmetry of the whole model (a turn about
         a cylinder's or a sphere's axis: no touch anywhere can fix it, and the contact is
         known all the same), when checked (:func:`with_symmetries`); empty otherwise.
+    sigma : float
+        How precisely the data fix the pose: the largest one-sigma displacement of a data
+        point along the least-constrained motion (:func:`pose_sigma`), model units; NaN
+        when not computed, ``inf`` when a motion is free.
     """
 
     free: int
@@ -65,6 +69,7 @@ class PoseFreedom:
     ratio: float
     slide_symmetric: tuple[bool, ...] = ()
     turn_symmetric: tuple[bool, ...] = ()
+    sigma: float = float("nan")
 
     @property
     def unresolved(self) -> int:
@@ -94,7 +99,8 @@ class PoseFreedom:
 
     def to_dict(self) -> dict:
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
-        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``."""
+        ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``, the
+        symmetry flags, ``unresolved`` and ``sigma`` (None when NaN or infinite)."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -108,6 +114,7 @@ class PoseFreedom:
             "slide_symmetric": list(self.slide_symmetric),
             "turn_symmetric": list(self.turn_symmetric),
             "unresolved": int(self.unresolved),
+            "sigma": float(self.sigma) if np.isfinite(self.sigma) else None,
         }
 
     def __repr__(self) -> str:
@@ -193,6 +200,87 @@ def pose_freedom(
         singular_values=rel,
         ratio=float(ratio),
     )
+
+
+def pose_sigma(
+    points: np.ndarray,
+    normals: np.ndarray,
+    noise: float,
+    ess_fraction: float = defaults.SCORE_ESS_FRACTION,
+    leave_out: int = 0,
+) -> float:
+    """How far the pose's least-squares uncertainty moves the data points, one sigma.
+
+    Linearised at the fitted pose, the residuals change by ``J theta`` for a twist
+    ``theta`` (the rows of :func:`pose_freedom`), so the fitted twist has covariance
+    ``noise^2 / ess_fraction (J^T J)^-1`` (each point worth ``ess_fraction`` of an
+    independent one, as in the scores). Along each principal direction ``v_k`` of ``J``
+    (singular value ``s_k``) the twist's standard deviation is
+    ``noise / sqrt(ess_fraction) / s_k``; the result is the largest, over the directions,
+    of that times the largest displacement of a data point under the unit twist ``v_k``.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        The data points at the fitted pose, model frame; at least 6.
+    normals : (n, 3) float
+        The surface normal at each point's closest point (normalised here).
+    noise : float
+        Noise standard deviation per point, model units (> 0).
+    ess_fraction : float
+        Effective fraction of independent points, in (0, 1].
+    leave_out : int
+        The this many least-constrained directions are left out (0 to 5): the free
+        motions that are symmetries of the model, which move nothing that matters.
+
+    Returns
+    -------
+    float
+        Model units; ``inf`` when a motion left in is unconstrained (a zero singular
+        value).
+
+    Raises
+    ------
+    TypeError
+        If ``points`` is not an array of real numbers.
+    ValueError
+        If ``points`` or ``normals`` is invalid (as :func:`pose_freedom`), ``noise`` is
+        not positive and finite, ``ess_fraction`` is not in (0, 1] or ``leave_out`` is
+        not an integer in 0 to 5.
+    """
+    x = check_points(points, "points", min_rows=6)
+    n = np.asarray(normals, dtype=np.float64)
+    if n.shape != x.shape or not np.all(np.isfinite(n)):
+        raise ValueError(
+            f"normals must be finite with the shape of points {x.shape}, got shape {n.shape}"
+        )
+    length = np.linalg.norm(n, axis=1)
+    if np.any(length <= 0.0):
+        raise ValueError(f"normals must not have zero rows, got {int(np.sum(length <= 0))}")
+    if not (isinstance(noise, (int, float)) and np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be a positive finite number, got {noise!r}")
+    if not (isinstance(ess_fraction, (int, float)) and 0.0 < ess_fraction <= 1.0):
+        raise ValueError(f"ess_fraction must be a number in (0, 1], got {ess_fraction!r}")
+    if not isinstance(leave_out, (int, np.integer)) or isinstance(leave_out, bool) or not (
+        0 <= leave_out <= 5
+    ):
+        raise ValueError(f"leave_out must be an integer in 0 to 5, got {leave_out!r}")
+    n = n / length[:, None]
+    c = x.mean(axis=0)
+    scale = float(np.sqrt(((x - c) ** 2).sum(axis=1).mean()))
+    if scale <= 0.0:
+        raise ValueError("points must not all coincide")
+    r = (x - c) / scale
+    J = np.hstack([n, np.cross(r, n)])
+    _, s, vt = np.linalg.svd(J, full_matrices=False)
+    keep = 6 - int(leave_out)
+    s, vt = s[:keep], vt[:keep]
+    if s[-1] <= s[0] * 1e-12:
+        return float("inf")
+    # a unit twist (t, w) moves point i by t + w x r_i
+    moves = vt[:, None, :3] + np.cross(vt[:, None, 3:], r[None, :, :])  # (6, n, 3)
+    reach = np.linalg.norm(moves, axis=2).max(axis=1)  # (6,)
+    return float((noise / np.sqrt(ess_fraction) / s * reach).max())
 
 
 def with_symmetries(

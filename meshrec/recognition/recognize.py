@@ -19,7 +19,7 @@ from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.edges import warn_sharp_edges
-from meshrec.recognition.freedom import PoseFreedom, pose_freedom, with_symmetries
+from meshrec.recognition.freedom import PoseFreedom, pose_freedom, pose_sigma, with_symmetries
 from meshrec.recognition.joint import (
     check_touch_sizes,
     explore_weak_motions,
@@ -328,6 +328,11 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     freedom = pose_freedom(on_surface, normals)
     if freedom.free:
         freedom = _with_model_symmetries(freedom, model)
+    sigma = float("inf")
+    if freedom.unresolved == 0 and rec.noise is not None and rec.noise > 0:
+        # how precisely the data fix the pose, the symmetries' free motions left out
+        sigma = pose_sigma(on_surface, normals, float(rec.noise), leave_out=freedom.free)
+    freedom = dataclasses.replace(freedom, sigma=sigma)
     rec = dataclasses.replace(rec, pose_freedom=freedom)
     if freedom.unresolved == 0:
         return rec
