@@ -6,6 +6,8 @@ fitted twists' spread along each principal direction measured, not computed.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -42,7 +44,8 @@ def test_matches_the_spread_of_fitted_twists_over_noise_draws():
 def test_scales_with_the_noise_and_the_effective_points():
     x, normals = _ellipsoid_patch(np.random.default_rng(6))
     s = pose_sigma(x, normals, 0.001, ess_fraction=1.0)
-    assert np.isfinite(s) and s > 0
+    assert np.isfinite(s)
+    assert s > 0
     assert pose_sigma(x, normals, 0.003, ess_fraction=1.0) == pytest.approx(3 * s)
     assert pose_sigma(x, normals, 0.001, ess_fraction=0.25) == pytest.approx(2 * s)
 
@@ -64,8 +67,6 @@ def test_pose_freedom_reports_sigma_in_its_dict():
     x, normals = _ellipsoid_patch(np.random.default_rng(8))
     f = pose_freedom(x, normals)
     assert f.to_dict()["sigma"] is None  # not computed: NaN
-    import dataclasses
-
     g = dataclasses.replace(f, sigma=0.004)
     assert isinstance(g, PoseFreedom)
     assert g.to_dict()["sigma"] == pytest.approx(0.004)
