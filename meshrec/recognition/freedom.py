@@ -149,25 +149,9 @@ def pose_freedom(
         ``normals`` does not have the same shape, is not finite or has a zero row, or
         ``ratio`` is not in (0, 1).
     """
-    x = check_points(points, "points", min_rows=6)
-    n = np.asarray(normals, dtype=np.float64)
-    if n.shape != x.shape or not np.all(np.isfinite(n)):
-        raise ValueError(
-            f"normals must be finite with the shape of points {x.shape}, got shape {n.shape}"
-        )
-    length = np.linalg.norm(n, axis=1)
-    if np.any(length <= 0.0):
-        raise ValueError(f"normals must not have zero rows, got {int(np.sum(length <= 0))}")
+    J, _, c, scale = _rigid_jacobian(points, normals)
     if not (isinstance(ratio, (int, float)) and 0.0 < float(ratio) < 1.0):
         raise ValueError(f"ratio must be a number in (0, 1), got {ratio!r}")
-    n = n / length[:, None]
-    c = x.mean(axis=0)
-    scale = float(np.sqrt(((x - c) ** 2).sum(axis=1).mean()))
-    if scale <= 0.0:
-        raise ValueError("points must not all coincide")
-    # Velocity of a point under the twist (t, w): t + (w / L) x (x - c); its normal part is
-    # n . t + ((x - c) / L x n) . w, one row per point.
-    J = np.hstack([n, np.cross((x - c) / scale, n)])
     _, s, vt = np.linalg.svd(J, full_matrices=False)
     rel = s / s[0]
     null = vt[rel < ratio]  # (k, 6) orthonormal free twists
@@ -248,15 +232,7 @@ def pose_sigma(
         not positive and finite, ``ess_fraction`` is not in (0, 1] or ``leave_out`` is
         not an integer in 0 to 5.
     """
-    x = check_points(points, "points", min_rows=6)
-    n = np.asarray(normals, dtype=np.float64)
-    if n.shape != x.shape or not np.all(np.isfinite(n)):
-        raise ValueError(
-            f"normals must be finite with the shape of points {x.shape}, got shape {n.shape}"
-        )
-    length = np.linalg.norm(n, axis=1)
-    if np.any(length <= 0.0):
-        raise ValueError(f"normals must not have zero rows, got {int(np.sum(length <= 0))}")
+    J, r, _, _ = _rigid_jacobian(points, normals)
     if not (isinstance(noise, (int, float)) and np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be a positive finite number, got {noise!r}")
     if not (isinstance(ess_fraction, (int, float)) and 0.0 < ess_fraction <= 1.0):
@@ -265,13 +241,6 @@ def pose_sigma(
         0 <= leave_out <= 5
     ):
         raise ValueError(f"leave_out must be an integer in 0 to 5, got {leave_out!r}")
-    n = n / length[:, None]
-    c = x.mean(axis=0)
-    scale = float(np.sqrt(((x - c) ** 2).sum(axis=1).mean()))
-    if scale <= 0.0:
-        raise ValueError("points must not all coincide")
-    r = (x - c) / scale
-    J = np.hstack([n, np.cross(r, n)])
     _, s, vt = np.linalg.svd(J, full_matrices=False)
     keep = 6 - int(leave_out)
     s, vt = s[:keep], vt[:keep]
@@ -281,6 +250,30 @@ def pose_sigma(
     moves = vt[:, None, :3] + np.cross(vt[:, None, 3:], r[None, :, :])  # (6, n, 3)
     reach = np.linalg.norm(moves, axis=2).max(axis=1)  # (6,)
     return float((noise / np.sqrt(ess_fraction) / s * reach).max())
+
+
+def _rigid_jacobian(points, normals) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The rigid Jacobian of the residuals, checked: ``(J, r, c, L)``.
+
+    Velocity of a point under the twist (t, w): t + w x (x - c) / L; its normal part is
+    n . t + ((x - c) / L x n) . w, one row ``[n, r x n]`` per point, ``r = (x - c) / L``.
+    """
+    x = check_points(points, "points", min_rows=6)
+    n = np.asarray(normals, dtype=np.float64)
+    if n.shape != x.shape or not np.all(np.isfinite(n)):
+        raise ValueError(
+            f"normals must be finite with the shape of points {x.shape}, got shape {n.shape}"
+        )
+    length = np.linalg.norm(n, axis=1)
+    if np.any(length <= 0.0):
+        raise ValueError(f"normals must not have zero rows, got {int(np.sum(length <= 0))}")
+    n = n / length[:, None]
+    c = x.mean(axis=0)
+    scale = float(np.sqrt(((x - c) ** 2).sum(axis=1).mean()))
+    if scale <= 0.0:
+        raise ValueError("points must not all coincide")
+    r = (x - c) / scale
+    return np.hstack([n, np.cross(r, n)]), r, c, scale
 
 
 def with_symmetries(
