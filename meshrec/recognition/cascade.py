@@ -29,7 +29,6 @@ stages above.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -40,8 +39,7 @@ from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.recognition.scoring import effective_points, noise_estimate
-from meshrec.registration.poses import refined_pose
-from meshrec.registration.refine import refine_rigid
+from meshrec.registration.pruned import pruned_from_start
 from meshrec.registration.register import (
     CoarseRegistration,
     Registration,
@@ -153,40 +151,28 @@ def pruned_registration(touch: TouchData, model, coarse: CoarseRegistration) -> 
         raise ValueError(f"coarse must be of model {model.name!r}, got {coarse.model!r}")
     if coarse.rejected:
         raise ValueError(f"coarse must have candidates, got none on model {model.name!r}")
-    t0 = time.perf_counter()
     cands = coarse.candidates
     i = int(coarse.screening.candidates[0])
     side = cands.sides[cands.side[i]]
     T0 = superposition(side.point, side.frame, cands.origins[i], float(coarse.screening.phis[0]))
+    times = dict(coarse.times)
     # A few steps only (the screening's count): the pose of a model far worse than the
     # leaders needs no polish, and a full refinement there took up to 30 iterations.
-    ref = refine_rigid(model, cands.points, T0, max_iter=defaults.CASCADE_PRUNED_ITERATIONS)
-    pose = refined_pose(model, ref, cands.geometry.point)
-    t_refine = time.perf_counter() - t0
-    times = dict(coarse.times)
-    return Registration(
-        model=model.name,
-        path=str(model.path),
-        error=pose.error,
-        contact=pose.contact,
-        normal=pose.normal,
-        phi=None,
-        T_model_touch=pose.T_model_touch,
+    return pruned_from_start(
+        model,
+        cands.points,
+        T0,
+        cands.geometry.point,
+        defaults.CASCADE_PRUNED_ITERATIONS,
         candidates=len(cands),
         raw_hits=cands.raw_hits,
-        searches=0,
-        seconds=coarse.seconds + t_refine,
-        times=StageTimes(
+        candidate_points=cands.model_points,
+        before=StageTimes(
             lookup=times.get("lookup", 0.0),
             phi=times.get("phi", 0.0),
             screen=times.get("screen", 0.0),
-            refine=t_refine,
         ),
-        candidate_points=cands.model_points,
-        rms=pose.rms,
-        n_points=len(cands.points),
-        poses=(pose,),
-        pruned=True,
+        seconds_before=coarse.seconds,
     )
 
 

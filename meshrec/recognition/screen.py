@@ -50,9 +50,8 @@ from meshrec.model.probe import probe_radius_of
 from meshrec.recognition.scoring import effective_points
 from meshrec.registration.candidates import curvature_tolerance
 from meshrec.registration.chart import SurfacePoint, rotation_z
-from meshrec.registration.poses import refined_pose
-from meshrec.registration.refine import refine_rigid
-from meshrec.registration.register import Registration, StageTimes
+from meshrec.registration.pruned import pruned_from_start
+from meshrec.registration.register import Registration
 from meshrec.registration.sampling import even_subsample
 from meshrec.registration.transform import superposition
 
@@ -596,7 +595,6 @@ def screened_registration(
     check_instance(screen, LibraryScreen, "screen")
     if not (0 <= i < len(screen.judged)) or not screen.judged[i]:
         raise ValueError(f"i must be a model the screen judged, got {i!r}")
-    t0 = time.perf_counter()
     side = _sides(geometry)[int(screen.side[i])]
     t = model.curvature
     v = int(screen.site[i])
@@ -604,25 +602,13 @@ def screened_registration(
     shift = frame[:, :2] @ screen.shift[i]  # in the tangent plane: the refinement lands it
     origin = SurfacePoint(point=np.array(t.points[v]) + shift, frame=frame)
     T0 = superposition(side.point, side.frame, origin, float(screen.phi[i]))
-    ref = refine_rigid(model, touch.points, T0, max_iter=defaults.SCREEN_PRUNED_ITERATIONS)
-    pose = refined_pose(model, ref, geometry.point)
-    seconds = time.perf_counter() - t0
-    return Registration(
-        model=model.name,
-        path=str(model.path),
-        error=pose.error,
-        contact=pose.contact,
-        normal=pose.normal,
-        phi=None,
-        T_model_touch=pose.T_model_touch,
+    return pruned_from_start(
+        model,
+        touch.points,
+        T0,
+        geometry.point,
+        defaults.SCREEN_PRUNED_ITERATIONS,
         candidates=int(screen.candidates[i]),
         raw_hits=int(screen.raw_hits[i]),
-        searches=0,
-        seconds=seconds,
-        times=StageTimes(refine=seconds),
         candidate_points=origin.point[None, :],
-        rms=pose.rms,
-        n_points=int(touch.n_points),
-        poses=(pose,),
-        pruned=True,
     )
