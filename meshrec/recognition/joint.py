@@ -437,15 +437,7 @@ def search_pairs(
     found = joint_poses(
         model, touches, seeds, geometries[0], best=defaults.PAIR_REFINE_SEEDS, start_ratio=np.inf
     )
-    poses = distinct_poses(
-        sorted((*previous.registration.poses, *found), key=lambda p: p.rms),
-        float(geometries[0].half_length),
-    )
-    fit = _fit(model, touches, list(previous.single), poses, time.perf_counter() - t0, t0)
-    reg = dataclasses.replace(
-        fit.registration, seconds=previous.registration.seconds + fit.registration.seconds
-    )
-    return dataclasses.replace(fit, registration=reg)
+    return _with_poses(model, touches, geometries, previous, found, t0)
 
 
 def explore_weak_motions(
@@ -504,10 +496,7 @@ def explore_weak_motions(
         best=len(starts),
         start_ratio=float("inf"),
     )
-    poses = distinct_poses(
-        sorted((*reg.poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
-    )
-    return _fit(model, touches, previous.single, poses, time.perf_counter() - t0, t0)
+    return _with_poses(model, touches, geometries, previous, found, t0)
 
 
 def candidate_seeds(
@@ -579,6 +568,20 @@ def first_touch_fit(touches: Sequence[TouchData], model, first: Registration) ->
             key=lambda p: p.rms,
         )
     return _fit(model, touches, [first], tuple(poses), time.perf_counter() - t0, t0)
+
+
+def _with_poses(model, touches, geometries, previous: JointFit, found, t0: float) -> JointFit:
+    """``previous`` with the poses ``found`` since ``t0`` among its own (distinct, least RMS
+    first), its time included."""
+    poses = distinct_poses(
+        sorted((*previous.registration.poses, *found), key=lambda p: p.rms),
+        float(geometries[0].half_length),
+    )
+    fit = _fit(model, touches, list(previous.single), poses, time.perf_counter() - t0, t0)
+    reg = dataclasses.replace(
+        fit.registration, seconds=previous.registration.seconds + fit.registration.seconds
+    )
+    return dataclasses.replace(fit, registration=reg)
 
 
 def _fit(model, touches, single, poses, t_joint: float, t0: float) -> JointFit:
