@@ -589,6 +589,11 @@ PROBE_OFFSET_MAX_FRACTION = 0.5
 PROBE_OFFSET_CHI2 = 25.0
 #: ... and R is more than this many noise deviations.
 PROBE_OFFSET_MIN_NOISE = 3.0
+#: ... and the offset removes at least this fraction of the mean squared misfit beyond the
+#: noise (rms0^2 - noise^2). Measured: a 0.1 tip on a unit sphere, three touches, 0.84; on
+#: a tube, one touch, above 1 (the fit reaches the noise); a torus against a library of
+#: look-alikes it is not in, 0.10; a tomato-can scan with no tip, 0.31.
+PROBE_OFFSET_EXPLAINED = 0.5
 # --------------------------------------------------------------------------- scale
 #: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
 #: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit

@@ -408,3 +408,33 @@ def test_the_truth_file_records_the_tip(models, tmp_path):
     doc["probe_radius"] = -1.0
     with pytest.raises(ValueError, match=r"truth\['probe_radius'\] must be >= 0"):
         meshrec.Truth.from_dict(doc)
+
+
+@pytest.mark.slow
+def test_an_object_not_in_the_library_gets_no_tip_suggestion(tmp_path):
+    """Three touches of a torus against a library of bumped spheres and ellipsoids: the
+    answer is unknown, and an offset that trims 5% of a misfit 27 times the noise is no
+    reason to suggest a ball tip (it was before ``defaults.PROBE_OFFSET_EXPLAINED``)."""
+    from scipy.spatial.transform import Rotation
+
+    from meshrec import bench
+
+    bench.write_shapes(
+        bench.shape_set(9, seed=7, families=["ellipsoid", "bumped_sphere"]), tmp_path / "look"
+    )
+    torus = next(s for s in bench.shape_set(9, seed=5) if "torus" in s.name)
+    bench.write_shapes([torus], tmp_path / "torus")
+    cache = tmp_path / "cache"
+    model = meshrec.ModelLibrary.from_folder(tmp_path / "torus", cache_dir=cache)[torus.name]
+    T_world_model = np.eye(4)
+    T_world_model[:3, :3] = Rotation.random(random_state=1).as_matrix()
+    T_world_model[:3, 3] = [0.3, -0.2, 0.5]
+    touches = []
+    for k in range(3):
+        sim = meshrec.simulate_touch(model, rng=20 + k, length=0.3, noise=0.002)
+        touches.append(sim.touch.transformed(T_world_model @ sim.T_model_touch))
+    library = meshrec.ModelLibrary.from_folder(tmp_path / "look", cache_dir=cache)
+    rec, caught = _recognise(touches, library)
+    assert rec.verdict == "unknown"
+    assert not caught
+    assert not any("ball tip" in w for w in rec.warnings)

@@ -173,8 +173,10 @@ def warn_probe_offset(rec, models) -> None:
     radius R that best explains the data; when the fit improves by more than the noise
     allows (``n (rms0^2 - rms^2) / max(noise, rms)^2 > defaults.PROBE_OFFSET_CHI2``, a
     test of one added parameter against the residual variance left, or the noise if
-    larger) and R is more than ``defaults.PROBE_OFFSET_MIN_NOISE``
-    noise deviations, a :class:`~meshrec.contact.probe.ProbeOffsetWarning` says so.
+    larger), R is more than ``defaults.PROBE_OFFSET_MIN_NOISE`` noise deviations, and the
+    offset removes at least ``defaults.PROBE_OFFSET_EXPLAINED`` of the summed squares
+    beyond the noise (``rms0^2 - noise^2``; otherwise a tip is not what is wrong), a
+    :class:`~meshrec.contact.probe.ProbeOffsetWarning` says so.
 
     Parameters
     ----------
@@ -196,6 +198,13 @@ def warn_probe_offset(rec, models) -> None:
     # "offset", 62 times the noise variance but 10 times the residual one).
     gain = n * (rms0**2 - rms**2) / max(rec.noise, rms) ** 2
     if gain <= defaults.PROBE_OFFSET_CHI2 or radius <= defaults.PROBE_OFFSET_MIN_NOISE * rec.noise:
+        return
+    excess = rms0**2 - rec.noise**2
+    if excess > 0 and (rms0**2 - rms**2) < defaults.PROBE_OFFSET_EXPLAINED * excess:
+        # The offset explains little of the misfit beyond the noise: a tip is not what is
+        # wrong (a torus touched against a library of bumped spheres and ellipsoids, RMS
+        # 27 times the noise, was trimmed by 5% at an "offset" of 0.08), and suggesting
+        # one would mislead.
         return
     warnings.warn(
         f"the data lie about {radius:.3g} outside the surface of {best.model!r} (they fit "
