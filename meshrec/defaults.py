@@ -202,6 +202,11 @@ LOOKUP_MIN_H_FRACTION = 1e-6
 #: The models recognised reliably cross 41 (bundled, 80k faces) and 17 to 18 (YCB scans);
 #: trimesh's default icosphere (subdivisions 3) crosses 5.2 and its 32-section cylinder 0.8.
 RESOLUTION_MIN_VERTICES_PER_CURVE = 8.0
+#: A face is flat, and left out of the vertex count and the slivers, when every corner normal
+#: of the smooth surface is within this angle (degrees) of the face's normal: the triangles
+#: of a plane are exact however few (a box's 12). A 32-section cylinder's side bends 5.6
+#: degrees per face, an icosphere(5)'s faces about 1.
+RESOLUTION_FLAT_ANGLE_DEG = 0.25
 #: Largest chord error (the sagitta the vertex normals imply at an edge's middle) as a
 #: fraction of the curve length. The YCB scans, recognised well, reach at most 5.2e-3 and
 #: the bundled models 1.9e-4; trimesh's default torus 1.0e-2 and icosphere(2) 1.6e-2.

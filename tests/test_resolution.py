@@ -106,9 +106,10 @@ def test_cad_cylinder_is_flagged_and_a_fine_sphere_is_not():
 
 
 def test_chord_error_alone_can_flag():
-    # a coarse 16-section tube next to a fine flat grid: short edges, a large chord error
+    # a coarse 16-section tube next to a fine sphere: short edges on the curved faces, and
+    # the tube's large chord error
     tube = _tube(1.0, 16, rings=3, height=2.0)
-    grid = trimesh.creation.box(extents=(4.0, 4.0, 0.1)).subdivide_to_size(0.05)
+    grid = trimesh.creation.icosphere(5, radius=1.0)
     V = np.vstack([tube.vertices, np.asarray(grid.vertices) + np.array((5.0, 0.0, 0.0))])
     F = np.vstack([tube.faces, np.asarray(grid.faces) + len(tube.vertices)])
     res = mesh_resolution(MeshData.from_arrays(V, F), curve_length=1.0)
@@ -136,6 +137,28 @@ def test_raises():
         coarse_message("ico", fine)
     with pytest.raises(TypeError, match="resolution must be a Resolution"):
         coarse_message("ico", {"too_coarse": True})
+
+
+def test_flat_faces_are_exact_however_few():
+    # a 12-triangle box is its own surface: no vertex count, no sliver, no chord error
+    box = mesh_resolution(_mesh(trimesh.creation.box(extents=(40.0, 30.0, 20.0))))
+    assert box.curved_fraction == 0.0
+    assert box.vertices_per_curve < defaults.RESOLUTION_MIN_VERTICES_PER_CURVE
+    assert box.sliver_fraction == 0.0
+    assert box.chord_error == 0.0
+    assert not box.too_coarse
+    # a long thin flat plate (every face a sliver) with a coarse 16-section tube beside it:
+    # only the tube's faces are curved and counted
+    plate = trimesh.creation.box(extents=(40.0, 1.0, 0.1))
+    tube = _tube(1.0, 16, rings=2, height=40.0)
+    V = np.vstack([tube.vertices, np.asarray(plate.vertices) + np.array((5.0, 0.0, 0.0))])
+    F = np.vstack([tube.faces, np.asarray(plate.faces) + len(tube.vertices)])
+    res = mesh_resolution(MeshData.from_arrays(V, F), curve_length=1.0)
+    tube_area = 2 * np.pi * 40.0 * np.sin(np.pi / 16) * 16 / np.pi  # 16 flat strips
+    plate_area = plate.area
+    assert res.curved_fraction == pytest.approx(tube_area / (tube_area + plate_area), rel=1e-6)
+    # the tube's strips run its full height: slivers; the plate's are not counted
+    assert res.sliver_fraction == pytest.approx(res.curved_fraction, rel=1e-9)
 
 
 def test_resolution_is_frozen():

@@ -41,10 +41,10 @@ def list_folder(folder: Path, units: str | None) -> dict:
     -------
     dict
         ``{"folder", "units", "models": [{"name", "file", "faces", "vertices", "size",
-        "mean_edge", "vertices_per_curve", "chord_error", "sliver_fraction", "too_coarse",
-        "coarse_reasons"}], "skipped": [{"file", "reason"}]}``; ``size`` is the
-        bounding-box diagonal and ``mean_edge`` the mean edge length, in the models'
-        units; the resolution fields are those of
+        "mean_edge", "vertices_per_curve", "curved_fraction", "chord_error",
+        "sliver_fraction", "too_coarse", "coarse_reasons"}], "skipped": [{"file",
+        "reason"}]}``; ``size`` is the bounding-box diagonal and ``mean_edge`` the mean
+        edge length, in the models' units; the resolution fields are those of
         :func:`meshrec.model.resolution.mesh_resolution` (default curve length).
 
     Raises
@@ -75,6 +75,7 @@ def list_folder(folder: Path, units: str | None) -> dict:
                 "size": float(np.linalg.norm(np.ptp(V, axis=0))),
                 "mean_edge": float(igl.avg_edge_length(V, F)),
                 "vertices_per_curve": res.vertices_per_curve,
+                "curved_fraction": res.curved_fraction,
                 "chord_error": res.chord_error,
                 "sliver_fraction": res.sliver_fraction,
                 "too_coarse": res.too_coarse,
@@ -115,8 +116,8 @@ def run_models(args, out) -> int:
         )
     if any(m["too_coarse"] for m in doc["models"]):
         out.write(
-            "per curve: vertices a touch curve crosses; too coarse: see `meshrec index` "
-            "or --json for why\n"
+            "per curve: vertices a touch curve crosses on the curved faces; too coarse: see "
+            "`meshrec index` or --json for why\n"
         )
     for s in doc["skipped"]:
         out.write(f"skipped {s['file']}: {s['reason']}\n")

@@ -6,8 +6,10 @@ crosses (between them the surface is a guess from their normals), the chord erro
 (how far the flat faces lie from the smooth surface their vertex normals imply, the
 surface :mod:`meshrec.model.surface` registers on), the curvature range, and how much of
 the surface is long thin slivers (CAD exports write a cylinder's side as full-height
-triangles with no vertex inside). A model failing one of the thresholds of
-``defaults.RESOLUTION_*`` is :attr:`Resolution.too_coarse`, with the reasons.
+triangles with no vertex inside). Flat faces are left out of the vertex count and the
+slivers: any triangulation of a plane is exact (a 12-triangle box is not coarse). A model
+failing one of the thresholds of ``defaults.RESOLUTION_*`` is
+:attr:`Resolution.too_coarse`, with the reasons.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.model.curvature import CurvatureTable
 from meshrec.model.mesh import MeshData
+from meshrec.model.surface import corner_normals
 
 __all__ = ["Resolution", "ResolutionWarning", "coarse_message", "mesh_resolution"]
 
@@ -39,9 +42,16 @@ class Resolution:
     curve_length : float
         The expected touch curve length, model units.
     edge_median, edge_p90 : float
-        Median and 90th percentile of the edge lengths, model units.
+        Median and 90th percentile of the lengths of the curved faces' edges (of all edges
+        when no face is curved), model units.
     vertices_per_curve : float
-        ``curve_length / edge_median``: about how many vertices a curve crosses.
+        ``curve_length / edge_median``: about how many vertices a curve crosses on the
+        curved part of the surface.
+    curved_fraction : float
+        The fraction of the surface area in curved faces: faces with a corner normal more
+        than ``defaults.RESOLUTION_FLAT_ANGLE_DEG`` from the face's normal (the smooth
+        surface bends there). With none (a mesh of flat faces) the vertex count is not
+        checked.
     chord_error : float
         The largest chord error, model units: over the edges that are not creases
         (normals within ``defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG``), the sagitta
@@ -53,7 +63,7 @@ class Resolution:
         The smallest ``k2`` and largest ``k1`` over the valid vertices of the curvature
         table, 1 / model units; NaN without a table (or without a valid vertex).
     sliver_fraction : float
-        The fraction of the surface area in faces whose aspect (``sqrt(3) L^2 / (4 A)``,
+        The fraction of the surface area in curved faces whose aspect (``sqrt(3) L^2 / (4 A)``,
         L the longest edge, A the area; 1 for an equilateral triangle) exceeds
         ``defaults.RESOLUTION_SLIVER_ASPECT``.
     too_coarse : bool
@@ -66,6 +76,7 @@ class Resolution:
     edge_median: float
     edge_p90: float
     vertices_per_curve: float
+    curved_fraction: float
     chord_error: float
     chord_fraction: float
     curvature_min: float
@@ -97,9 +108,9 @@ def mesh_resolution(
     -------
     Resolution
         Too coarse when fewer than ``defaults.RESOLUTION_MIN_VERTICES_PER_CURVE``
-        vertices lie along a curve, the chord error exceeds
+        vertices lie along a curve on the curved faces, the chord error exceeds
         ``defaults.RESOLUTION_MAX_CHORD_FRACTION`` of the curve length, or more than
-        ``defaults.RESOLUTION_MAX_SLIVER_FRACTION`` of the area is slivers. Measured
+        ``defaults.RESOLUTION_MAX_SLIVER_FRACTION`` of the area is curved slivers. Measured
         0.04 to 0.08 s on the bundled 80,000-face models.
 
     Raises
@@ -132,11 +143,20 @@ def mesh_resolution(
             f"got {len(curvature.face_patch)}"
         )
 
+    # Curved faces: a corner normal of the smooth surface (creases kept sharp) bends away
+    # from the face's own normal; on flat faces the triangles are the surface itself.
+    bend = np.einsum("fkj,fj->fk", corner_normals(mesh), mesh.face_normals).min(axis=1)
+    curved = bend < math.cos(math.radians(defaults.RESOLUTION_FLAT_ANGLE_DEG))
     E = igl.edges(F)
     dp = V[E[:, 1]] - V[E[:, 0]]
     length = np.linalg.norm(dp, axis=1)
-    edge_median = float(np.median(length))
-    edge_p90 = float(np.percentile(length, 90))
+    counted = length
+    if curved.any():
+        # an edge counts when a curved face has it (libigl's edges of the curved faces)
+        ce = igl.edges(F[curved])
+        counted = np.linalg.norm(V[ce[:, 1]] - V[ce[:, 0]], axis=1)
+    edge_median = float(np.median(counted))
+    edge_p90 = float(np.percentile(counted, 90))
     per_curve = curve_length / edge_median if edge_median > 0 else 0.0
 
     # The sagitta the vertex normals imply at each edge's middle (as the smooth surface
@@ -153,9 +173,10 @@ def mesh_resolution(
     longest = np.max([np.einsum("ij,ij->i", u, u) for u in (b - a, c - b, a - c)], axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         aspect = math.sqrt(3.0) * longest / (4.0 * area)
-    sliver = ~(aspect <= defaults.RESOLUTION_SLIVER_ASPECT)  # degenerate faces count
+    sliver = curved & ~(aspect <= defaults.RESOLUTION_SLIVER_ASPECT)  # degenerate count
     total = float(area.sum())
     sliver_fraction = float(area[sliver].sum()) / total if total > 0 else 0.0
+    curved_fraction = float(area[curved].sum()) / total if total > 0 else 0.0
 
     k_min = k_max = math.nan
     t = [] if curvature is None else curvature.table_sites[~curvature.crease[curvature.table_sites]]
@@ -164,10 +185,10 @@ def mesh_resolution(
         k_max = float(np.max(curvature.k1[t]))
 
     reasons = []
-    if per_curve < defaults.RESOLUTION_MIN_VERTICES_PER_CURVE:
+    if curved.any() and per_curve < defaults.RESOLUTION_MIN_VERTICES_PER_CURVE:
         reasons.append(
             f"a touch curve {curve_length:.4g} long crosses about {per_curve:.3g} vertices "
-            f"(median edge {edge_median:.4g}), fewer than "
+            f"on its curved faces (median edge {edge_median:.4g}), fewer than "
             f"{defaults.RESOLUTION_MIN_VERTICES_PER_CURVE:g}"
         )
     if chord > defaults.RESOLUTION_MAX_CHORD_FRACTION * curve_length:
@@ -179,7 +200,8 @@ def mesh_resolution(
     if sliver_fraction > defaults.RESOLUTION_MAX_SLIVER_FRACTION:
         reasons.append(
             f"{sliver_fraction:.0%} of the surface is long thin triangles (aspect over "
-            f"{defaults.RESOLUTION_SLIVER_ASPECT:g}) with no vertex inside (at most "
+            f"{defaults.RESOLUTION_SLIVER_ASPECT:g}) on a curved part, with no vertex inside "
+            "(at most "
             f"{defaults.RESOLUTION_MAX_SLIVER_FRACTION:.0%})"
         )
     return Resolution(
@@ -187,6 +209,7 @@ def mesh_resolution(
         edge_median=edge_median,
         edge_p90=edge_p90,
         vertices_per_curve=float(per_curve),
+        curved_fraction=curved_fraction,
         chord_error=chord,
         chord_fraction=chord / curve_length,
         curvature_min=k_min,
