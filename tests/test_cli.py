@@ -9,6 +9,7 @@ from pathlib import Path
 import jsonschema
 import numpy as np
 import pytest
+import trimesh
 
 from meshrec.app.cli import main
 
@@ -238,3 +239,18 @@ def test_main_in_process(simulated, capsys, monkeypatch, env):
     assert main(["--version"]) == 0
     assert main(["recognize", str(simulated / "missing.csv")]) == 2
     assert "meshrec: error:" in capsys.readouterr().err
+
+
+def test_index_takes_the_folder_as_an_argument(tmp_path, capsys):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    trimesh.creation.icosphere(2, radius=10.0).export(folder / "ball.stl")
+    cache = tmp_path / "cache"
+    assert main(["index", str(folder), "--cache-dir", str(cache)]) == 0
+    assert "ball" in capsys.readouterr().out
+    # the same folder twice is fine; two different ones are an error (exit 2, one line)
+    assert main(["index", str(folder), "--models", str(folder), "--cache-dir", str(cache)]) == 0
+    assert "cached" in capsys.readouterr().out
+    assert main(["index", str(folder), "--models", "surfaces", "--cache-dir", str(cache)]) == 2
+    err = capsys.readouterr().err
+    assert "give the folder once" in err

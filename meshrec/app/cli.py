@@ -135,12 +135,13 @@ def _parser() -> argparse.ArgumentParser:
     add_workers_args(r)
 
     i = sub.add_parser("index", help="build or refresh the cached model indexes")
+    i.add_argument(
+        "folder", nargs="?", default=None, metavar="DIR|SET", help="the same as --models"
+    )
     models_arg(i)
     i.add_argument("--force", action="store_true", help="rebuild even if cached")
 
-    m = sub.add_parser(
-        "models", help="list the bundled model sets, or what a model folder holds"
-    )
+    m = sub.add_parser("models", help="list the bundled model sets, or what a model folder holds")
     m.add_argument(
         "folder", nargs="?", default=None, metavar="DIR|SET", help="a model folder or set"
     )
@@ -361,8 +362,7 @@ def _run_batch(args, names, folder, units) -> int:
         )
     if failed:
         raise ValueError(
-            f"{failed} of {len(names)} touch files failed (their JSON lines have an "
-            '"error" key)'
+            f'{failed} of {len(names)} touch files failed (their JSON lines have an "error" key)'
         )
     return 0
 
@@ -490,6 +490,12 @@ def _main(argv: list[str] | None) -> int:
     argv = _join_vector_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args = parser.parse_args(argv)
+        if getattr(args, "folder", None) is not None and args.command == "index":
+            if args.models is not None and args.models != args.folder:
+                parser.error(
+                    f"index: give the folder once, got {args.folder!r} and --models {args.models!r}"
+                )
+            args.models = args.folder
     except SystemExit as exc:
         return int(exc.code or 0)
     _load_core()
