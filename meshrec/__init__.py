@@ -42,6 +42,7 @@ _WHERE = {
     "ModelLibrary": "meshrec.model.library",
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
+    "ResolutionWarning": "meshrec.model.resolution",
     "TouchAdvice": "meshrec.recognition.advice",
     "PoseFreedom": "meshrec.recognition.freedom",
     "pose_freedom": "meshrec.recognition.freedom",
@@ -106,6 +107,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
     from meshrec.model.mesh import load_mesh
+    from meshrec.model.resolution import ResolutionWarning
     from meshrec.recognition.advice import TouchAdvice, next_touch
     from meshrec.recognition.cascade import cascade_register
     from meshrec.recognition.edges import SharpEdgeWarning
@@ -160,6 +162,7 @@ __all__ = [
     "RefinedSearch",
     "Registration",
     "RegistrationTrace",
+    "ResolutionWarning",
     "RoughFitWarning",
     "Screening",
     "SearchRun",
