@@ -341,6 +341,20 @@ SCORE_NOISE_FLOOR_FRACTION = 1e-3
 #: that the truth is inside at least 95% of the time when the probabilities are
 #: calibrated (measured: 99.3% on the issue's condition, held out).
 VERDICT_COVERAGE = 0.95
+#: A flat touch weighs each model by the share of its surface that is flat over the
+#: curves' reach (meshrec.recognition.flatness): a random touch on a box is flat far more
+#: often than one on a cylinder, whose caps fit it as well. The weights are clipped to at
+#: most this ratio between models, so that the prior orders the models the data cannot
+#: separate but never decides alone (at 4, two tied models get at most 0.8 and 0.2: both
+#: stay plausible at VERDICT_COVERAGE); the recognition also keeps every model plausible
+#: on the data alone.
+FLAT_PRIOR_MAX_RATIO = 4.0
+#: A curvature site counts as flat for that prior when its normal turns less than this
+#: (radians) over the curves' reach, besides being within the touch's lookup tolerance:
+#: the planes of CAD models and trimesh primitives (0 to 1e-6), not a gently curved
+#: shape that short noisy curves cannot tell from a plane (the calibration's curves 0.2
+#: long on unit-size shapes turn 0.05 to 0.1 over theirs).
+FLAT_SITE_BEND = 0.01
 #: "unknown" when the best model's RMS residual exceeds this many times the noise ...
 #: (in-library simulated touches: best RMS / noise at most 1.23 over 90 touches of
 #: the issue's condition, most between 0.92 and 1.11; shapes of clearly different

@@ -19,6 +19,7 @@ from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.edges import warn_sharp_edges
+from meshrec.recognition.flatness import flat_prior
 from meshrec.recognition.freedom import PoseFreedom, pose_freedom, pose_sigma, with_symmetries
 from meshrec.recognition.joint import (
     check_touch_sizes,
@@ -32,6 +33,7 @@ from meshrec.recognition.joint import (
 from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
 from meshrec.recognition.scoring import (
     ModelScore,
+    Verdict,
     WeightedPose,
     decide,
     fit_p_value,
@@ -692,8 +694,9 @@ def _noise_and_points(rec: Recognition) -> tuple[float, int]:
     return noise, int(sum(counts))
 
 
-def _score(rec: Recognition) -> tuple[tuple[ModelScore, ...], float]:
-    """Per-model calibrated scores (ranking order) and the noise estimate."""
+def _score(rec: Recognition, prior: dict | None = None) -> tuple[tuple[ModelScore, ...], float]:
+    """Per-model calibrated scores (ranking order) and the noise estimate; ``prior``: the
+    models' prior weights by name (None: uniform)."""
     noise, n = _noise_and_points(rec)
     rms, poses = [], []
     for reg in rec.ranking:
@@ -711,7 +714,7 @@ def _score(rec: Recognition) -> tuple[tuple[ModelScore, ...], float]:
             )
         )
     ll = log_likelihoods(rms, n, noise)
-    prob = posterior(ll)
+    prob = posterior(ll, None if prior is None else [prior[r.model] for r in rec.ranking])
     scores = tuple(
         ModelScore(reg.model, float(p), r, n, float(li), ps)
         for reg, p, r, li, ps in zip(rec.ranking, prob, rms, ll, poses, strict=True)
@@ -786,7 +789,12 @@ def _with_verdict(
     by_name = {m.name: m for m in models}
     noise, n = _noise_and_points(rec)
     t0 = time.perf_counter()
-    scores, noise = _score(rec)
+    prior = None
+    if len(rec.touches) == 1:
+        weights = flat_prior(rec.touch, rec.geometry, models)
+        if weights is not None:
+            prior = {m.name: float(w) for m, w in zip(models, weights, strict=True)}
+    scores, noise = _score(rec, prior)
     rec = _ordered(rec, scores)
     t_score = time.perf_counter() - t0
     t_wide = 0.0
@@ -801,7 +809,7 @@ def _with_verdict(
         if run is None:
             run = ModelWorkers(models, workers=1)
         rec = _widened(rec, fits, by_name, method, run)
-        scores, noise = _score(rec)
+        scores, noise = _score(rec, prior)
         rec = _ordered(rec, scores)
         t_wide = time.perf_counter() - t1
         cautions.append(
@@ -813,6 +821,9 @@ def _with_verdict(
     probs = [s.probability for s in rec.scores]
     top = rec.scores[0] if rec.scores else None
     v = decide(names, probs, None if top is None else top.rms, n, noise)
+    if prior is not None:
+        v = _with_data_plausible(v, rec.scores, n, noise)
+        cautions.append(_flat_caution(rec.scores, prior))
     reason = v.reason
     for k, g in enumerate(rec.geometries):
         if (
@@ -844,6 +855,38 @@ def _with_verdict(
         scoring_seconds=t_score,
         widened_seconds=t_wide,
         touch_rms=per_touch,
+    )
+
+
+def _with_data_plausible(v: Verdict, scores, n: int, noise: float) -> Verdict:
+    """The verdict of a flat touch: the prior orders the models but removes none that the
+    data alone leave plausible, and it never makes one ``recognised`` alone."""
+    if v.verdict == "unknown":
+        return v
+    names = [s.model for s in scores]
+    data = decide(names, posterior([s.log_likelihood for s in scores]), scores[0].rms, n, noise)
+    if data.verdict == "unknown":
+        return v
+    keep = set(v.plausible) | set(data.plausible)
+    plausible = tuple(s.model for s in scores if s.model in keep)  # most probable first
+    if len(plausible) == len(v.plausible) and v.verdict == data.verdict:
+        return v
+    reason = (
+        f"the data cannot separate {len(plausible)} models ({', '.join(plausible)}) on this "
+        "flat touch: they fit about equally well, and how often each one's surface is flat "
+        "over the curves' reach orders them; touch again elsewhere to decide"
+    )
+    return Verdict("ambiguous", plausible, reason, v.fit_ratio)
+
+
+def _flat_caution(scores, prior: dict) -> str:
+    """The caution of a flat touch: the models weighed by their flat share."""
+    top = max(prior.values())
+    shown = ", ".join(f"{s.model} {prior[s.model] / top:.2g}" for s in scores[:4])
+    return (
+        "a flat touch: the models it fits equally are weighed by the share of their surface "
+        f"flat over the curves' reach (relative: {shown}); touch a curved part or an edge "
+        "to decide"
     )
 
 
