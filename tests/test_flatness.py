@@ -3,6 +3,7 @@ cylinders, the clipping, the recognition's use of it and its errors."""
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 
@@ -11,6 +12,7 @@ import pytest
 import trimesh
 
 from meshrec import defaults, simulate_touch
+from meshrec.app.cli import main
 from meshrec.model.index import ModelIndex
 from meshrec.recognition.flatness import flat_prior, flat_share, flat_tolerance
 from meshrec.recognition.recognize import recognize
@@ -144,3 +146,25 @@ def test_raises(models):
         flat_prior(sim.touch.points, g, [models["box"]])
     with pytest.raises(TypeError, match="geometry must be"):
         flat_prior(sim.touch, None, [models["box"]])
+
+
+def test_cli_prints_the_flat_note(tmp_path, capsys):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    trimesh.creation.box(extents=BOX).export(folder / "box.stl")
+    trimesh.creation.cylinder(radius=1.0, height=3.0, sections=64).export(folder / "can.stl")
+    real = tmp_path / "real_box.stl"
+    trimesh.creation.box(extents=BOX).subdivide_to_size(0.02).export(real)
+    touch = tmp_path / "touch.json"
+    assert main(["simulate", str(real), "-o", str(touch), "--seed", "8"]) == 0
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    capsys.readouterr()
+    assert main(["recognize", str(touch), "--models", str(folder), *cache]) == 0
+    out = capsys.readouterr().out
+    notes = [ln for ln in out.splitlines() if ln.startswith("note: a flat touch")]
+    assert len(notes) == 1, out
+    assert "box 1" in notes[0]
+    assert out.strip().splitlines()[-1].startswith("ambiguous: box or can")
+    assert main(["recognize", str(touch), "--models", str(folder), "--json", *cache]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert any(w.startswith("a flat touch") for w in doc["warnings"])

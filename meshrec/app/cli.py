@@ -250,7 +250,9 @@ def recognition_to_json(
     }
 
 
-def _print_table(rec: Recognition, top: int | None, out) -> None:
+def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
+    """The text output; ``shown``: the warnings already printed on stderr (the
+    recognition's other cautions are printed as ``note:`` lines)."""
     import numpy as np
 
     several = len(rec.touches) > 1
@@ -285,6 +287,9 @@ def _print_table(rec: Recognition, top: int | None, out) -> None:
                 f"{r.seconds:>6.2f}  {c}\n"
             )
     out.write(f"{rec.reason}\n")
+    for caution in rec.warnings:
+        if caution not in shown:
+            out.write(f"note: {caution}\n")
     if rec.pose_freedom is not None:
         sigma = rec.pose_freedom.sigma
         known = f" (data points within about {sigma:.2g}, one sigma)" if np.isfinite(sigma) else ""
@@ -335,7 +340,7 @@ def _run_recognize(args) -> int:
         doc = recognition_to_json(rec, args.top, warnings=list(shown))
         sys.stdout.write(json.dumps(doc) + "\n")
     else:
-        _print_table(rec, args.top, sys.stdout)
+        _print_table(rec, args.top, sys.stdout, shown=set(shown))
     return 1 if rec.verdict == "unknown" else 0
 
 

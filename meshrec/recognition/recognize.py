@@ -882,7 +882,8 @@ def _with_data_plausible(v: Verdict, scores, n: int, noise: float) -> Verdict:
 def _flat_caution(scores, prior: dict) -> str:
     """The caution of a flat touch: the models weighed by their flat share."""
     top = max(prior.values())
-    shown = ", ".join(f"{s.model} {prior[s.model] / top:.2g}" for s in scores[:4])
+    fitted = [s for s in scores if s.rms is not None][:4]
+    shown = ", ".join(f"{s.model} {prior[s.model] / top:.2g}" for s in fitted)
     return (
         "a flat touch: the models it fits equally are weighed by the share of their surface "
         f"flat over the curves' reach (relative: {shown}); touch a curved part or an edge "
