@@ -32,9 +32,14 @@ def _numpy_loaded(pid: int) -> bool:
         return False
 
 
-def _interrupt(cache: Path, after: float) -> subprocess.CompletedProcess:
-    """Start ``meshrec index --force``, wait until numpy is loading, then ``after`` more
-    seconds, and send SIGINT."""
+def _entries(cache: Path) -> int:
+    """Finished model entries in the cache (written through a rename: whole files only)."""
+    return len(list(cache.glob("*.npz"))) if cache.exists() else 0
+
+
+def _interrupt(cache: Path, after: float, entries: int = 0) -> subprocess.CompletedProcess:
+    """Start ``meshrec index --force``, wait until numpy is loading (and, with ``entries``,
+    until that many models are indexed), then ``after`` more seconds, and send SIGINT."""
     proc = subprocess.Popen(
         [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
         stdout=subprocess.PIPE,
@@ -45,6 +50,8 @@ def _interrupt(cache: Path, after: float) -> subprocess.CompletedProcess:
     deadline = time.monotonic() + 60
     while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.0002)
+    while _entries(cache) < entries and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.0002)
     time.sleep(after)
     running = proc.poll() is None
     proc.send_signal(signal.SIGINT)
@@ -53,21 +60,23 @@ def _interrupt(cache: Path, after: float) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
-# Seeded moments: at once (numpy half-imported), later in start-up (trimesh's imports, where
-# a KeyboardInterrupt used to be swallowed and the run went on), and during the indexing of
-# the four models (start-up about 0.8 s, indexing 2 s, on the 2-core CI machine).
+# Seeded moments (models indexed, seconds after): at once (numpy half-imported), later in
+# start-up (trimesh's imports, where a KeyboardInterrupt used to be swallowed and the run
+# went on), and during the indexing of the four models, after the first and the second
+# model's entry is written (about 0.6 s per model here: timing the indexing from start-up
+# instead went stale when the index got faster, and the signal came after the end).
 _rng = np.random.default_rng(15)
 MOMENTS = [
-    0.0,
-    round(float(_rng.uniform(0.05, 0.4)), 3),
-    *np.round(_rng.uniform(0.5, 2.0, size=2), 3).tolist(),
+    (0, 0.0),
+    (0, round(float(_rng.uniform(0.05, 0.4)), 3)),
+    *[(k, round(float(_rng.uniform(0.0, 0.2)), 3)) for k in (1, 2)],
 ]
 
 
-@pytest.mark.parametrize("after", MOMENTS)
-def test_ctrl_c_exits_130_quietly(tmp_path, after):
+@pytest.mark.parametrize(("entries", "after"), MOMENTS)
+def test_ctrl_c_exits_130_quietly(tmp_path, entries, after):
     cache = tmp_path / "cache"
-    proc = _interrupt(cache, after)
+    proc = _interrupt(cache, after, entries)
     assert proc.returncode == 130, (proc.returncode, proc.stderr)
     assert "Traceback" not in proc.stderr
     # the progress lines (stderr is not a terminal) and exactly one line more
