@@ -78,6 +78,14 @@ PHI_POINTS = 36
 PHI_REFINE_RATIO = 1.5
 #: Absolute tolerance of the bracket refinement, radians.
 PHI_XTOL = 2e-3
+#: The phi grid by bounds (:mod:`meshrec.registration.bounded`): points evaluated
+#: (cumulative, farthest from the contact first) before each check of which samples can
+#: still matter; the rest of the PHI_POINTS follow for the samples left. The registrations
+#: are the same bits as with the whole grid; only the work changes. Measured on the phi
+#: grids of 7 touches of the paper surfaces (one per model, 64 candidates): 0.43 to 0.48
+#: of the whole grid's point distances for (3, 6, 12, 24), (6, 12, 24), (4, 8, 16) and
+#: (9, 18, 27).
+PHI_BOUND_ROUNDS = (6, 12, 24)
 
 # --- local search on surface charts (Section 2.2.1) and final refinement --------------------
 #: Candidates (best by their phi error) that get a full local search.
