@@ -21,6 +21,7 @@ the mean of a complete sample is taken as there), so the registrations are the s
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -119,10 +120,12 @@ def _check_rounds(rounds) -> tuple[int, ...]:
     try:
         values = tuple(int(r) for r in rounds)
     except (TypeError, ValueError):
-        raise ValueError(f"rounds must be a sequence of positive integers, got {rounds!r}")
+        raise ValueError(
+            f"rounds must be a sequence of positive integers, got {rounds!r}"
+        ) from None
     if any(v != r for v, r in zip(values, rounds, strict=True)) or any(v < 1 for v in values):
         raise ValueError(f"rounds must be a sequence of positive integers, got {rounds!r}")
-    if any(b <= a for a, b in zip(values, values[1:], strict=False)):
+    if any(b <= a for a, b in itertools.pairwise(values)):
         raise ValueError(f"rounds must be increasing, got {rounds!r}")
     return values
 
