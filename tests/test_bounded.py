@@ -95,12 +95,17 @@ def test_phi_brackets_and_refine_phis_read_what_the_whole_grid_gives(cases):
         for i in order[:limit]:
             assert np.argmin(brackets.errors[i]) == np.argmin(full[i])
         chosen = order[:4]
-        for i, got in zip(chosen, refine_phis(model, cands, brackets, chosen), strict=True):
+        lean = refine_phis(model, cands, brackets, chosen, complete=False)
+        whole = refine_phis(model, cands, brackets, chosen)
+        for i, got, shown in zip(chosen, lean, whole, strict=True):
             error = phi_error(model, cands.origins[i], local[i])
             want = search_phi(error, steps=defaults.PHI_STEPS, grid_errors=full[i])
             assert got.phi == want.phi
             assert got.error == want.error
             assert np.array_equal(got.minima, want.minima)
+            # complete=True: the whole row exact (pictures), the same angles.
+            assert np.array_equal(shown.grid_errors, full[i])
+            assert shown.phi == want.phi
 
 
 def test_refine_phis_completes_a_row_whose_best_is_only_bounded(cases):
@@ -118,7 +123,7 @@ def test_refine_phis_completes_a_row_whose_best_is_only_bounded(cases):
             continue
         full = grid_errors(model, cands.origins, local, defaults.PHI_STEPS)
         for i in loose[:2]:
-            got = refine_phis(model, cands, brackets, [i])[0]
+            got = refine_phis(model, cands, brackets, [i], complete=False)[0]
             error = phi_error(model, cands.origins[i], local[i])
             want = search_phi(error, steps=defaults.PHI_STEPS, grid_errors=full[i])
             assert got.phi == want.phi

@@ -205,6 +205,8 @@ def refine_phis(
     candidates: ContactCandidates,
     brackets: PhiBrackets,
     indices: Sequence[int],
+    *,
+    complete: bool = True,
 ) -> tuple[PhiSearch, ...]:
     """Refine every bracket of the given candidates (stage 4, before their local search).
 
@@ -216,6 +218,10 @@ def refine_phis(
         From :func:`phi_brackets` on the same candidates.
     indices : sequence of int
         The candidates whose brackets to refine.
+    complete : bool
+        Give every ``PhiSearch.grid_errors`` exact (for pictures and traces). False:
+        exact only where the refinement reads it (within ``defaults.PHI_REFINE_RATIO`` of
+        the best), a lower bound elsewhere; the refined angles are the same.
 
     Returns
     -------
@@ -246,24 +252,27 @@ def refine_phis(
             raise ValueError(f"indices must be in 0..{c - 1}, got {i!r}")
         local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
         error = phi_error(model, candidates.origins[i], local_sub)
-        row = _exact_row(model, candidates.origins[i], local_sub, brackets, i)
+        row = _exact_row(model, candidates.origins[i], local_sub, brackets, i, complete)
         out.append(search_phi(error, steps=len(brackets.grid), grid_errors=row))
     return tuple(out)
 
 
-def _exact_row(model, origin, local_sub, brackets: PhiBrackets, i: int) -> np.ndarray:
+def _exact_row(
+    model, origin, local_sub, brackets: PhiBrackets, i: int, complete: bool
+) -> np.ndarray:
     """Candidate ``i``'s sampled errors, exact wherever :func:`search_phi` reads them.
 
     The samples within ``defaults.PHI_REFINE_RATIO`` of the row's (exact) best are
-    completed; the others are lower bounds above that threshold, where ``search_phi``
-    neither refines a bracket nor finds a neighbour below one.
+    completed (all of them with ``complete``); the others are lower bounds above that
+    threshold, where ``search_phi`` neither refines a bracket nor finds a neighbour below
+    one.
     """
     row = brackets.errors[i]
     if brackets.exact is None or brackets.exact[i].all():
         return row
     known = brackets.exact[i]
     best = row[known].min(initial=np.inf)
-    if row[~known].min() < best:  # the best itself only bounded: complete the row
+    if complete or row[~known].min() < best:  # (the best itself only bounded)
         todo = np.flatnonzero(~known)
     else:
         todo = np.flatnonzero(~known & (row <= defaults.PHI_REFINE_RATIO * best))
