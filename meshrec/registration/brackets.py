@@ -19,6 +19,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.io.checks import check_instance, check_int
 from meshrec.model.index import ModelIndex
+from meshrec.registration.bounded import bounded_grid_errors, exact_samples, placed_grid
 from meshrec.registration.chart import SurfacePoint, rotation_z
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.objective import mean_distances
@@ -39,16 +40,24 @@ class PhiBrackets:
     grid : (s,) float
         The sampled angles, ``2 pi i / s``, radians.
     errors : (c, s) float
-        Mean point-to-surface distance of the subsample at each candidate and angle.
+        Mean point-to-surface distance of the subsample at each candidate and angle where
+        ``exact``; elsewhere a lower bound of it (see
+        :mod:`meshrec.registration.bounded`: such samples are above every threshold the
+        later stages apply).
     order : (k,) int
         The candidates kept, best sampled error first (stable); those whose best sample
-        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned.
+        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned. Exact in
+        its first ``ranked`` entries (``phi_brackets``); after them, the candidates
+        whose best is only bounded follow, least bound first.
+    exact : (c, s) bool or None
+        Which samples of ``errors`` are exact (None: all of them).
     """
 
     subset: np.ndarray = field(repr=False)
     grid: np.ndarray = field(repr=False)
     errors: np.ndarray = field(repr=False)
     order: np.ndarray = field(repr=False)
+    exact: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def best(self) -> np.ndarray:
@@ -86,12 +95,7 @@ def grid_errors(
     (c, steps) float
         Mean unsigned point-to-surface distance at each candidate and angle.
     """
-    Rz = rotation_z(np.arange(steps) * (2.0 * np.pi / steps))  # (s, 3, 3)
-    frames = np.array([o.frame for o in origins])  # (c, 3, 3)
-    R = np.einsum("cij,sjk->csik", frames, Rz)  # (c, s, 3, 3)
-    pts = np.array(local_points)  # (c, n, 3)
-    placed = np.einsum("csij,cnj->csni", R, pts)
-    placed += np.array([o.point for o in origins])[:, None, None, :]
+    placed = placed_grid(origins, local_points, steps)
     c, s, n, _ = placed.shape
     return mean_distances(model, placed.reshape(c * s, n, 3)).reshape(c, s)
 
@@ -128,6 +132,7 @@ def phi_brackets(
     steps: int = defaults.PHI_STEPS,
     n_points: int = defaults.PHI_POINTS,
     prune_ratio: float = defaults.SEARCH_PRUNE_RATIO,
+    ranked: int | None = defaults.SCREEN_CANDIDATES,
 ) -> PhiBrackets:
     """Sample the error against phi at every candidate, and rank the candidates.
 
@@ -143,6 +148,10 @@ def phi_brackets(
     prune_ratio : float
         Candidates whose best sample exceeds this factor times the least one are dropped
         from ``order``.
+    ranked : int, optional
+        Only the first ``ranked`` of ``order`` are read (the screening's limit,
+        ``defaults.SCREEN_CANDIDATES``): candidates surely behind them are left with
+        bounds of their errors. None: ``order`` is exact throughout.
 
     Returns
     -------
@@ -163,15 +172,31 @@ def phi_brackets(
         raise ValueError(f"steps must be an integer >= 3, got {steps!r}")
     subset = even_subsample(len(candidates.points), n_points)
     local_sub = [candidates.local_points[k][subset] for k in candidates.side]
-    errors = grid_errors(model, candidates.origins, local_sub, steps)
+    # Exact wherever the ranking, the pruning and the screening's starts read it: the
+    # same as grid_errors there. refine_phis completes the rows it reads.
+    grid = bounded_grid_errors(
+        model,
+        candidates.origins,
+        local_sub,
+        steps,
+        prune_ratio=max(prune_ratio, 1.0),
+        refine_ratio=1.0,
+        ranked=ranked,
+    )
+    errors = grid.errors
     best = errors.min(axis=1)
     order = np.argsort(best, kind="stable")
-    order = order[best[order] <= prune_ratio * best[order[0]]]
+    settled = order[grid.settled[order]]
+    order = settled[best[settled] <= prune_ratio * best[settled[0]]]
+    bounded = np.flatnonzero(~grid.settled)
+    bounded = bounded[np.argsort(best[bounded], kind="stable")]
+    order = np.concatenate([order, bounded[best[bounded] <= prune_ratio * best[settled[0]]]])
     return PhiBrackets(
         subset=subset,
         grid=np.arange(steps) * (2.0 * np.pi / steps),
         errors=errors,
         order=order,
+        exact=grid.exact,
     )
 
 
@@ -180,6 +205,8 @@ def refine_phis(
     candidates: ContactCandidates,
     brackets: PhiBrackets,
     indices: Sequence[int],
+    *,
+    complete: bool = True,
 ) -> tuple[PhiSearch, ...]:
     """Refine every bracket of the given candidates (stage 4, before their local search).
 
@@ -191,6 +218,10 @@ def refine_phis(
         From :func:`phi_brackets` on the same candidates.
     indices : sequence of int
         The candidates whose brackets to refine.
+    complete : bool
+        Give every ``PhiSearch.grid_errors`` exact (for pictures and traces). False:
+        exact only where the refinement reads it (within ``defaults.PHI_REFINE_RATIO`` of
+        the best), a lower bound elsewhere; the refined angles are the same.
 
     Returns
     -------
@@ -221,5 +252,32 @@ def refine_phis(
             raise ValueError(f"indices must be in 0..{c - 1}, got {i!r}")
         local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
         error = phi_error(model, candidates.origins[i], local_sub)
-        out.append(search_phi(error, steps=len(brackets.grid), grid_errors=brackets.errors[i]))
+        row = _exact_row(model, candidates.origins[i], local_sub, brackets, i, complete)
+        out.append(search_phi(error, steps=len(brackets.grid), grid_errors=row))
     return tuple(out)
+
+
+def _exact_row(
+    model, origin, local_sub, brackets: PhiBrackets, i: int, complete: bool
+) -> np.ndarray:
+    """Candidate ``i``'s sampled errors, exact wherever :func:`search_phi` reads them.
+
+    The samples within ``defaults.PHI_REFINE_RATIO`` of the row's (exact) best are
+    completed (all of them with ``complete``); the others are lower bounds above that
+    threshold, where ``search_phi`` neither refines a bracket nor finds a neighbour below
+    one.
+    """
+    row = brackets.errors[i]
+    if brackets.exact is None or brackets.exact[i].all():
+        return row
+    known = brackets.exact[i]
+    best = row[known].min(initial=np.inf)
+    if complete or row[~known].min() < best:  # (the best itself only bounded)
+        todo = np.flatnonzero(~known)
+    else:
+        todo = np.flatnonzero(~known & (row <= defaults.PHI_REFINE_RATIO * best))
+    if len(todo) == 0:
+        return row
+    row = row.copy()
+    row[todo] = exact_samples(model, origin, local_sub, len(brackets.grid), todo)
+    return row

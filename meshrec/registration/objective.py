@@ -21,7 +21,7 @@ import numpy as np
 
 from meshrec.model.probe import probe_radius_of
 
-__all__ = ["Residuals", "mean_distances", "residuals"]
+__all__ = ["Residuals", "mean_distances", "point_distances", "residuals"]
 
 
 @dataclass(frozen=True)
@@ -86,6 +86,32 @@ def residuals(model, points: np.ndarray) -> Residuals:
     return Residuals(values=values, closest=closest, gradient=unit - slopes)
 
 
+def point_distances(model, points: np.ndarray) -> np.ndarray:
+    """Unsigned distance of each point to the model's surface.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    points : (m, 3) float
+        Points, model coordinates.
+
+    Returns
+    -------
+    (m,) float
+        The Euclidean distance to the closest point of the mesh; for a model seen through
+        a ball-tipped probe, the distance to the offset surface (``|signed distance - R|``,
+        signed by the closest face's normal). Each point's distance is its own (the same
+        bits whatever the other points).
+    """
+    flat = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    dist, closest, face = model.surface.closest_points(flat)
+    radius = probe_radius_of(model)
+    if radius > 0.0:
+        side = np.einsum("ij,ij->i", flat - closest, model.mesh.face_normals[face])
+        dist = np.abs(np.where(side < 0.0, -dist, dist) - radius)
+    return dist
+
+
 def mean_distances(model, points: np.ndarray) -> np.ndarray:
     """Mean unsigned distance of each batch of points to the model's surface.
 
@@ -103,10 +129,4 @@ def mean_distances(model, points: np.ndarray) -> np.ndarray:
         (``|signed distance - R|``, signed by the closest face's normal).
     """
     k, n, _ = points.shape
-    flat = np.ascontiguousarray(points.reshape(-1, 3))
-    dist, closest, face = model.surface.closest_points(flat)
-    radius = probe_radius_of(model)
-    if radius > 0.0:
-        side = np.einsum("ij,ij->i", flat - closest, model.mesh.face_normals[face])
-        dist = np.abs(np.where(side < 0.0, -dist, dist) - radius)
-    return dist.reshape(k, n).mean(axis=1)
+    return point_distances(model, points.reshape(-1, 3)).reshape(k, n).mean(axis=1)

@@ -452,7 +452,8 @@ def register_full(
         return _registration(model, stages, trace, coarse.seconds, clock)
     brackets, screening = coarse.brackets, coarse.screening
     chosen = screening.candidates[:searches]
-    phis = refine_phis(model, cands, brackets, chosen)
+    # Exact rows only in a trace (pictures); the angles are the same either way.
+    phis = refine_phis(model, cands, brackets, chosen, complete=trace)
     clock.lap("phi")
     starts = [(i, p.phi) for i, p in zip(chosen, phis, strict=True)]
     runs = search_candidates(model, cands, starts, method=method)
