@@ -283,8 +283,7 @@ def cascade_register(
     # The screen's pruned registrations (a few refinement steps each) and the first
     # stages of the others in one batch.
     jobs = [
-        StageJob("screened", models[i], (screen, i), defaults.PARALLEL_COST_PRUNED)
-        for i in cut
+        StageJob("screened", models[i], (screen, i), defaults.PARALLEL_COST_PRUNED) for i in cut
     ]
     jobs += [StageJob("coarse", models[i], cost=defaults.PARALLEL_COST_COARSE) for i in todo]
     results = batch(jobs)

@@ -396,9 +396,7 @@ class ModelWorkers:
         extra = {"pure": False} if self._client is not None else {}
         executor = self._client if self._client is not None else self._pool
         futures = [
-            executor.submit(
-                _stage_chunk, self._spec, [items[i] for i in c], touch, *args, **extra
-            )
+            executor.submit(_stage_chunk, self._spec, [items[i] for i in c], touch, *args, **extra)
             for c in chunks
         ]
         results = [f.result() for f in futures]
