@@ -653,7 +653,7 @@ SCREEN_LEADERS = 2
 #: Rigid-refinement steps on all the points for a model the screen pruned.
 SCREEN_PRUNED_ITERATIONS = 3
 #: Expected costs of the cascade's per-model jobs when a batch is split over workers
-#: (meshrec.recognition.stages.balanced_chunks), in units of a full search of
+#: (meshrec.recognition.jobs.balanced_chunks), in units of a full search of
 #: LOCAL_SEARCHES local searches (a full search costs its searches over that): a model's
 #: first stages, and a pruned registration (the cascade's or the screen's). Measured on
 #: 40 blobs of 5,120 faces (CPU medians: first stages 0.11 s, full search 0.21 s, pruned

@@ -20,8 +20,8 @@ from meshrec.recognition.cascade import (
     cascade_survivors,
     pruned_registration,
 )
+from meshrec.recognition.jobs import run_stage
 from meshrec.recognition.scoring import effective_points
-from meshrec.recognition.stages import run_stage
 from meshrec.registration.register import register, register_coarse, register_full
 
 MODELS = Path(__file__).resolve().parents[1] / "models"

@@ -38,6 +38,7 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.recognition.jobs import StageJob, run_stages_here
 from meshrec.recognition.scoring import effective_points, noise_estimate
 from meshrec.recognition.screen import (
     library_sites,
@@ -45,7 +46,6 @@ from meshrec.recognition.screen import (
     screen_library,
     screen_survivors,
 )
-from meshrec.recognition.stages import StageJob, run_stages_here
 from meshrec.registration.pruned import pruned_from_start
 from meshrec.registration.register import (
     CoarseRegistration,

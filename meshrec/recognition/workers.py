@@ -44,7 +44,7 @@ from meshrec.io.checks import check_instance
 from meshrec.model.cache import default_cache_dir
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.probe import probe_model, probe_radius_of
-from meshrec.recognition.stages import StageJob, balanced_chunks, run_stage, run_stages_here
+from meshrec.recognition.jobs import StageJob, balanced_chunks, run_stage, run_stages_here
 
 __all__ = ["ModelWorkers", "available_cores"]
 
@@ -115,7 +115,7 @@ def _warm(spec: _Spec) -> int:
 
 
 def _stage_chunk(spec: _Spec, items, touch, geometry, method, lookup_scale, trace):
-    """Run a chunk of :class:`~meshrec.recognition.stages.StageJob` (in a worker).
+    """Run a chunk of :class:`~meshrec.recognition.jobs.StageJob` (in a worker).
 
     ``items`` holds per job ``(kind, fingerprint, radius, payload, cost)``: the model by
     its fingerprint, seen through a probe tip of ``radius``
@@ -327,11 +327,11 @@ class ModelWorkers:
         lookup_scale: float = 1.0,
         progress: Callable[[int, StageJob], None] | None = None,
     ) -> list:
-        """Run a batch of per-model jobs (:mod:`meshrec.recognition.stages`) on the workers.
+        """Run a batch of per-model jobs (:mod:`meshrec.recognition.jobs`) on the workers.
 
         In parallel the jobs are split into about ``defaults.PARALLEL_CHUNKS_PER_WORKER``
         chunks per worker of even expected cost (``StageJob.cost``,
-        :func:`~meshrec.recognition.stages.balanced_chunks`), the costliest submitted
+        :func:`~meshrec.recognition.jobs.balanced_chunks`), the costliest submitted
         first.
 
         Parameters
@@ -344,7 +344,7 @@ class ModelWorkers:
         method : str
         trace : bool
         lookup_scale : float
-            As for :func:`~meshrec.recognition.stages.run_stage`.
+            As for :func:`~meshrec.recognition.jobs.run_stage`.
         progress : callable, optional
             ``progress(k, job)``: before the ``k``-th job (serial), or as the results come
             in, ``k`` counting them (in parallel).
@@ -352,7 +352,7 @@ class ModelWorkers:
         Returns
         -------
         list
-            :func:`~meshrec.recognition.stages.run_stage`'s result per job, in the order
+            :func:`~meshrec.recognition.jobs.run_stage`'s result per job, in the order
             of ``jobs``; the warnings each job raised are raised again here, in that order.
 
         Raises

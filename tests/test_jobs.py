@@ -1,4 +1,4 @@
-"""Tests for meshrec.recognition.stages: the per-model jobs and their even split.
+"""Tests for meshrec.recognition.jobs: the per-model stage jobs and their even split.
 
 Known answers: the longest-first split worked by hand; a job's result is the stage
 function's own, called directly.
@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 import meshrec
-from meshrec.recognition.screen import library_sites, screen_library
-from meshrec.recognition.stages import (
+from meshrec.recognition.jobs import (
     STAGE_KINDS,
     StageJob,
     balanced_chunks,
     run_stage,
     run_stages_here,
 )
+from meshrec.recognition.screen import library_sites, screen_library
 from meshrec.registration.register import register, register_coarse, touch_geometry
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
