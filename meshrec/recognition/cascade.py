@@ -25,6 +25,14 @@ With ``defaults.SCREEN_MIN_MODELS`` models or more, :func:`cascade_register` fir
 library-wide screen (:mod:`meshrec.recognition.screen`): its leaders are registered in
 full, the models it prunes get its own pruned registration, and only the others enter the
 stages above.
+
+The decisions (the screen, its survivors, the cascade's survivors) are taken in the
+caller's process on whole sets of results; the per-model work between them runs in three
+batches of :class:`~meshrec.recognition.jobs.StageJob` (the screen's leaders; the
+screen's pruned registrations and the others' first stages; the full searches and the
+cascade's pruned registrations), here or on the workers of a
+:class:`~meshrec.recognition.workers.ModelWorkers` (local processes, a Dask cluster):
+the result is the same wherever they ran.
 """
 
 from __future__ import annotations

@@ -1,8 +1,12 @@
 """Where the per-model work of a recognition runs: here, in local processes, or on a Dask cluster.
 
-Each model is registered on its own (the result of one never depends on another), so the
-models of a library can be spread over processes and machines and the result is exactly
-that of a serial run: the same registrations, in the same order, the same warnings.
+Each model's work depends on no other model's, so the models of a library can be spread
+over processes and machines and the result is exactly that of a serial run: the same
+registrations, in the same order, the same warnings. With the cascade
+(:mod:`meshrec.recognition.cascade`) the decisions between its batches (the screen, which
+models are searched in full) are taken by the caller on the whole batch's results, and
+each batch of per-model jobs (:mod:`meshrec.recognition.jobs`) is spread over the
+workers in chunks of even expected cost (:meth:`ModelWorkers.run_stages`).
 
 A :class:`ModelWorkers` holds the library and the workers:
 
