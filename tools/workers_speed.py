@@ -6,18 +6,19 @@
 On a library of ``--models`` blobs (``meshrec.bench.blobs``, as ``tools/scale.py`` makes
 them; the cache is warmed first), seeded touches (``bench.paper_touch`` on the model
 ``seed * 7919 mod n``, as ``tools/scale.py``) are recognised in one process (the
-default: screen and cascade), then by a held ``ModelWorkers`` of ``--workers`` local
-processes (like a service; its start is timed apart), each with the cascade and, unless
-``--no-full``, with ``cascade=False`` (every model searched in full: what the workers ran
-before they ran the cascade). Wall time per recognition (``time.perf_counter``) and the
-CPU time of this process (``time.process_time``: all of the serial run's work, only the
-parent's share with workers), the ratio of the wall times measured back to back, and
-whether the workers' cascade result is the serial one exactly (verdict, plausible set,
-every registration's model, error, rms, pose, pruned flag and searches). Beside each
-touch, the attainable ratio: pure CPU work on ``--workers`` spawned processes against
-the same in this process, measured right after (the best the machine's load allows).
-Prints a Markdown table (and writes it with ``--out``). Run it with this checkout first
-on ``PYTHONPATH`` (a script's folder, not the current one, is on ``sys.path``).
+default: screen and cascade), then with ``--workers`` local processes started for the
+touch and closed after it (their start not timed), and, unless ``--no-full``, by a held
+``ModelWorkers`` with ``cascade=False`` (every model searched in full: what the workers
+ran before they ran the cascade). Wall time per recognition (``time.perf_counter``) and
+CPU time: the serial process's (``time.process_time``), the parent's and the workers'
+(``getrusage`` of the ended children, less that of a start and close of as many workers
+measured once); the ratio of the wall times measured back to back; whether the workers'
+result is the serial one exactly (verdict, plausible set, every registration's model,
+error, rms, pose, pruned flag and searches). Beside each touch, the attainable ratio:
+pure CPU work on ``--workers`` spawned processes against the same in this process,
+measured right after (the best the machine's load allows). Prints a Markdown table (and
+writes it with ``--out``). Run it with this checkout first on ``PYTHONPATH`` (a
+script's folder, not the current one, is on ``sys.path``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
+import resource
 import statistics
 import sys
 import tempfile
@@ -83,6 +85,19 @@ def _attainable(k: int, n: int = 4_000_000, jobs: int = 4) -> float:
         return (time.perf_counter() - t0) / serial
 
 
+def _children_cpu() -> float:
+    """CPU seconds of this process's children that have ended (and were waited for)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _started(library, k: int, cache: Path) -> dict:
+    """Wall time and children's CPU of starting ``k`` workers and closing them."""
+    k0, t0 = _children_cpu(), time.perf_counter()
+    ModelWorkers(library, workers=k, cache_dir=cache).close()
+    return {"wall": time.perf_counter() - t0, "children_cpu": _children_cpu() - k0}
+
+
 def _timed(touch, library, **kwargs):
     t0, c0 = time.perf_counter(), time.process_time()
     rec = meshrec.recognize(touch, library, **kwargs)
@@ -110,9 +125,8 @@ def main(argv=None) -> int:
         library = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
         names = library.names
         n = len(names)
-        t0 = time.perf_counter()
+        start = _started(library, args.workers, cache)  # once, as a baseline
         workers = ModelWorkers(library, workers=args.workers, cache_dir=cache)
-        start_s = time.perf_counter() - t0
         rows = []
         try:
             for seed in range(args.touches):
@@ -120,7 +134,12 @@ def main(argv=None) -> int:
                 touch = bench.paper_touch(library[true], seed=seed).touch
                 row = {"seed": seed, "model": true}
                 serial, row["serial_s"], row["serial_cpu"] = _timed(touch, library)
-                par, row["workers_s"], row["workers_cpu"] = _timed(touch, library, workers=workers)
+                # fresh workers, closed after the touch: their CPU less the start's
+                k0 = _children_cpu()
+                fresh = ModelWorkers(library, workers=args.workers, cache_dir=cache)
+                par, row["workers_s"], row["workers_cpu"] = _timed(touch, library, workers=fresh)
+                fresh.close()
+                row["children_cpu"] = _children_cpu() - k0 - start["children_cpu"]
                 row["same"] = _identical(serial, par)
                 row["attainable"] = _attainable(args.workers)
                 row["verdict"] = serial.verdict
@@ -139,8 +158,9 @@ def main(argv=None) -> int:
         f"Command: `PYTHONPATH=. nice -n 10 python tools/workers_speed.py {shown}` "
         f"({os.cpu_count()} logical CPUs shared with other work; load average "
         f"{os.getloadavg()[0]:.1f} at the end). {n} blobs, warm cache; {workers.mode} mode, "
-        f"{k} workers, started once in "
-        f"{start_s:.1f} s. Wall seconds per recognition (CPU seconds of this process).\n",
+        f"{k} workers (their start: {start['wall']:.1f} s wall, "
+        f"{start['children_cpu']:.1f} s CPU, not counted). Wall seconds per recognition "
+        "(CPU seconds: serial, of the process; with workers, of the parent + the workers).\n",
         f"| touch (model) | verdict (best) | searched in full | serial | {k} workers "
         f"| ratio | attainable ratio | {k} workers, no cascade | same result |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|",
@@ -150,7 +170,7 @@ def main(argv=None) -> int:
         out.append(
             f"| {r['seed']} ({r['model']}) | {r['verdict']} ({r['best']}) | {r['searched']} "
             f"| {r['serial_s']:.1f} ({r['serial_cpu']:.1f}) "
-            f"| {r['workers_s']:.1f} ({r['workers_cpu']:.1f}) "
+            f"| {r['workers_s']:.1f} ({r['workers_cpu']:.2f} + {r['children_cpu']:.1f}) "
             f"| {r['workers_s'] / r['serial_s']:.2f} | {r['attainable']:.2f} | {full} "
             f"| {r['same']} |"
         )
@@ -158,12 +178,13 @@ def main(argv=None) -> int:
         med_s = statistics.median(r["serial_s"] for r in rows)
         med_w = statistics.median(r["workers_s"] for r in rows)
         med_c = statistics.median(r["serial_cpu"] for r in rows)
+        med_wc = statistics.median(r["workers_cpu"] + r["children_cpu"] for r in rows)
         out.append("")
         out.append(
             f"Median wall per recognition: {med_s:.1f} s serial ({med_c:.1f} s CPU, "
             f"{med_c / n:.3f} s CPU per model), {med_w:.1f} s with {k} workers (ratio "
-            f"{med_w / med_s:.2f}); identical results {sum(r['same'] for r in rows)}/"
-            f"{len(rows)}; attainable ratio (pure CPU work) "
+            f"{med_w / med_s:.2f}; {med_wc:.1f} s CPU, parent + workers); identical results "
+            f"{sum(r['same'] for r in rows)}/{len(rows)}; attainable ratio (pure CPU work) "
             f"{statistics.median(r['attainable'] for r in rows):.2f}.\n"
         )
     text = "\n".join(out) + "\n"
