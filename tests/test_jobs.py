@@ -93,6 +93,12 @@ def test_jobs_are_checked(surfaces):
         StageJob("screened", model, coarse)
     with pytest.raises(TypeError, match="payload\\[0\\] must be a LibraryScreen"):
         StageJob("screened", model, (coarse, 0))
+    models = list(surfaces)
+    screen = screen_library(touch, touch_geometry(touch), library_sites(models))
+    with pytest.raises(ValueError, match="payload\\[1\\] must be >= 0"):
+        StageJob("screened", model, (screen, -1))
+    with pytest.raises(TypeError, match="payload\\[1\\] must be an integer"):
+        StageJob("screened", model, (screen, 1.0))
     with pytest.raises(ValueError, match="payload must be None"):
         StageJob("coarse", model, coarse)
     with pytest.raises(TypeError, match="job must be a StageJob"):

@@ -150,6 +150,13 @@ def test_models_of_another_library_are_refused(library):
         meshrec.recognize(one, lib, workers=ModelWorkers([lib["a"], lib["b"]]))
 
 
+def test_run_stages_refuses_what_is_not_a_job(library):
+    lib, _ = library
+    one = _touches(lib)[0]
+    with pytest.raises(TypeError, match="jobs\\[0\\] must be a StageJob"):
+        ModelWorkers(lib, workers=1).run_stages([lib["a"]], one, None, "lm")
+
+
 @pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2"])
 def test_bad_workers_are_refused(library, workers):
     with pytest.raises(ValueError, match="workers must be a positive integer"):
