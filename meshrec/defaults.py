@@ -660,3 +660,7 @@ SCREEN_PRUNED_ITERATIONS = 3
 #: 0.003 s).
 PARALLEL_COST_COARSE = 0.5
 PARALLEL_COST_PRUNED = 0.015
+#: Jobs of at most this cost (the pruned poses, a rejected model's registration) run in
+#: the calling process while the workers run the others (their inputs need no round
+#: trip, and the caller waits anyway).
+PARALLEL_HERE_COST = 0.05

@@ -336,7 +336,8 @@ class ModelWorkers:
         In parallel the jobs are split into about ``defaults.PARALLEL_CHUNKS_PER_WORKER``
         chunks per worker of even expected cost (``StageJob.cost``,
         :func:`~meshrec.recognition.jobs.balanced_chunks`), the costliest submitted
-        first.
+        first; the jobs of cost at most ``defaults.PARALLEL_HERE_COST`` run in this
+        process meanwhile.
 
         Parameters
         ----------
@@ -381,21 +382,29 @@ class ModelWorkers:
             return run_stages_here(jobs, touch, geometry, method, trace, lookup_scale, progress)
         if self._pool is None and self._client is None:
             raise RuntimeError("the workers were closed")
-        chunks = balanced_chunks(
-            [job.cost for job in jobs], self.workers * defaults.PARALLEL_CHUNKS_PER_WORKER
-        )
+        # The cheapest jobs (a pruned pose: a few refinement steps) run here while the
+        # workers run the others: no round trip of their inputs, and this process waits
+        # anyway.
+        here = [i for i, job in enumerate(jobs) if job.cost <= defaults.PARALLEL_HERE_COST]
+        away = [i for i, job in enumerate(jobs) if job.cost > defaults.PARALLEL_HERE_COST]
+        chunks = [
+            [away[j] for j in c]
+            for c in balanced_chunks(
+                [jobs[i].cost for i in away], self.workers * defaults.PARALLEL_CHUNKS_PER_WORKER
+            )
+        ]
         args = (geometry, method, float(lookup_scale), bool(trace))
         # the models may be seen through a probe tip (recognize's probe_radius)
-        items = [
-            (
-                job.kind,
-                self._fingerprints[job.model.name],
-                probe_radius_of(job.model),
-                job.payload,
-                job.cost,
+        items = {
+            i: (
+                jobs[i].kind,
+                self._fingerprints[jobs[i].model.name],
+                probe_radius_of(jobs[i].model),
+                jobs[i].payload,
+                jobs[i].cost,
             )
-            for job in jobs
-        ]
+            for i in away
+        }
         # Dask's submit re-runs nothing by default (pure=False: every call is new work)
         extra = {"pure": False} if self._client is not None else {}
         executor = self._client if self._client is not None else self._pool
@@ -403,9 +412,17 @@ class ModelWorkers:
             executor.submit(_stage_chunk, self._spec, [items[i] for i in c], touch, *args, **extra)
             for c in chunks
         ]
-        results = [f.result() for f in futures]
         out = [None] * n
         done = 0
+        for i in here:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                result = run_stage(jobs[i], touch, geometry, method, trace, lookup_scale)
+            out[i] = (result, [(w.category, str(w.message)) for w in caught])
+            if progress is not None:
+                progress(done, jobs[i])
+            done += 1
+        results = [f.result() for f in futures]
         for c, res in zip(chunks, results, strict=True):
             for i, item in zip(c, res, strict=True):
                 out[i] = item
