@@ -20,6 +20,7 @@ from meshrec.recognition.cascade import (
     cascade_survivors,
     pruned_registration,
 )
+from meshrec.recognition.jobs import run_stage
 from meshrec.recognition.scoring import effective_points
 from meshrec.registration.register import register, register_coarse, register_full
 
@@ -192,3 +193,63 @@ def test_the_cascade_on_the_first_of_several_touches_gives_the_full_searchs_answ
     assert tuple(fast.plausible) == tuple(full.plausible)
     assert fast.best.rms == pytest.approx(full.best.rms, rel=1e-3)
     np.testing.assert_allclose(fast.touch_rms, full.touch_rms, rtol=1e-3)
+
+
+# ------------------------------------------------------------------ batches run anywhere
+class _Shuffled:
+    """Runs each batch of jobs here in a seeded random order: a twin of workers that
+    finish in any order (the cascade must only see each batch's results, in its order)."""
+
+    def __init__(self, seed):
+        self.rng = np.random.default_rng(seed)
+        self.kinds = []
+
+    def run_stages(self, jobs, touch, geometry, method, trace=False, progress=None):
+        jobs = list(jobs)
+        out = [None] * len(jobs)
+        for k, j in enumerate(self.rng.permutation(len(jobs))):
+            out[j] = run_stage(jobs[j], touch, geometry, method, trace)
+            if progress is not None:
+                progress(k, jobs[j])
+        self.kinds.append(sorted({job.kind for job in jobs}))
+        return out
+
+
+def test_the_cascades_batches_give_its_result_in_any_order(surfaces, monkeypatch):
+    # the screen on the four surfaces, one leader: on these touches it prunes the
+    # elliptic paraboloid (ellipsoid 0), the cascade the monkey saddle (crossed trough 0)
+    monkeypatch.setattr(defaults, "SCREEN_MIN_MODELS", 2)
+    monkeypatch.setattr(defaults, "SCREEN_LEADERS", 1)
+    models = list(surfaces)
+    seen = {"screen": 0, "cascade": 0, "rejected": 0}
+    for name, seed in (("crossed_trough", 0), ("ellipsoid", 0)):
+        touch = paper_touch(surfaces[name], seed).touch
+        calls = []
+        here = cascade_register(touch, models, progress=lambda *a, calls=calls: calls.append(a))
+        run = _Shuffled(seed)
+        there = cascade_register(touch, models, run=run)
+        assert run.kinds[0] == ["leader"]
+        assert [c[0] for c in calls] == list(range(len(calls)))
+        # the first stages ran on every model but those the screen pruned
+        screened = {r.model for r in here if r.pruned and len(r.candidate_points) == 1}
+        assert {c[2] for c in calls} == {r.model for r in here} - screened
+        for a, b in zip(here, there, strict=True):
+            assert (a.model, a.error, a.rms, a.pruned, a.searches) == (
+                b.model,
+                b.error,
+                b.rms,
+                b.pruned,
+                b.searches,
+            )
+            if a.T_model_touch is not None:
+                np.testing.assert_array_equal(a.T_model_touch, b.T_model_touch)
+            seen["rejected"] += a.rejected
+            seen["screen"] += a.pruned and len(a.candidate_points) == 1
+            seen["cascade"] += a.pruned and len(a.candidate_points) > 1
+    assert all(v >= 1 for v in seen.values()), seen
+
+
+def test_cascade_register_refuses_a_runner_without_run_stages(surfaces):
+    touch = meshrec.simulate_touch(surfaces["ellipsoid"], rng=3).touch
+    with pytest.raises(TypeError, match="run must be a ModelWorkers"):
+        cascade_register(touch, list(surfaces), run=object())

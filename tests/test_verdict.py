@@ -17,8 +17,8 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
+from meshrec.recognition import jobs as jobs_module
 from meshrec.recognition import recognize as recognize_module
-from meshrec.recognition import workers as workers_module
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 SCRIPT = Path(sys.executable).with_name("meshrec")
@@ -93,7 +93,7 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
 
 @pytest.mark.parametrize(
     ("cascade", "module", "name"),
-    [(False, workers_module, "register"), (True, recognize_module, "cascade_register")],
+    [(False, jobs_module, "register"), (True, recognize_module, "cascade_register")],
 )
 def test_warnings_raised_inside_are_kept_and_passed_on(
     surfaces, monkeypatch, cascade, module, name

@@ -82,7 +82,10 @@ def test_local_processes_give_the_serial_result(library, parallel_small):
         assert workers.workers == 2
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            parallel = [meshrec.recognize(t, lib, workers=workers) for t in (one, [one, two], far)]
+            parallel = [
+                meshrec.recognize(t, lib, workers=workers, cascade=False)
+                for t in (one, [one, two], far)
+            ]
     assert serial[2].widened_seconds > 0
     for s, p in zip(serial, parallel, strict=True):
         _same(s, p)
@@ -104,7 +107,9 @@ def test_progress_and_warnings_come_back_from_the_workers(library, parallel_smal
         warnings.catch_warnings(record=True) as again,
     ):
         warnings.simplefilter("always")
-        rec = meshrec.recognize(one, lib, workers=workers, progress=lambda *a: calls.append(a))
+        rec = meshrec.recognize(
+            one, lib, workers=workers, cascade=False, progress=lambda *a: calls.append(a)
+        )
     _same(serial, rec)
     assert [(w.category, str(w.message)) for w in caught] == [
         (w.category, str(w.message)) for w in again
@@ -143,6 +148,13 @@ def test_models_of_another_library_are_refused(library):
     one = _touches(lib)[0]
     with pytest.raises(ValueError, match="must belong to the workers' library"):
         meshrec.recognize(one, lib, workers=ModelWorkers([lib["a"], lib["b"]]))
+
+
+def test_run_stages_refuses_what_is_not_a_job(library):
+    lib, _ = library
+    one = _touches(lib)[0]
+    with pytest.raises(TypeError, match="jobs\\[0\\] must be a StageJob"):
+        ModelWorkers(lib, workers=1).run_stages([lib["a"]], one, None, "lm")
 
 
 @pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2"])
@@ -196,11 +208,12 @@ def test_scheduler_without_distributed_is_an_import_error(library, monkeypatch):
         ModelWorkers(lib, scheduler="tcp://127.0.0.1:8786")
 
 
-@pytest.fixture
-def dask_cluster(tmp_path):
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory):
     """A Dask scheduler and two worker processes, started with Dask's own commands on
-    the loopback interface; yields the scheduler's address."""
+    the loopback interface (once for this module's tests); yields the scheduler's address."""
     pytest.importorskip("distributed")
+    tmp_path = tmp_path_factory.mktemp("dask")
     dask = shutil.which("dask", path=str(Path(sys.executable).parent))
     if dask is None:
         pytest.skip("the dask command is not installed")
@@ -276,9 +289,11 @@ def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
         with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
             assert workers.mode == "dask"
             assert workers.workers == 2
-            remote = [meshrec.recognize(t, lib, workers=workers) for t in (one, [one, two])]
+            remote = [
+                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in (one, [one, two])
+            ]
         # and through recognize's own short-lived client
-        once = meshrec.recognize(one, lib, scheduler=dask_cluster)
+        once = meshrec.recognize(one, lib, scheduler=dask_cluster, cascade=False)
     for s, r in zip(serial, remote, strict=True):
         _same(s, r)
     _same(serial[0], once)
@@ -294,8 +309,83 @@ def test_local_processes_see_the_models_through_the_probe_tip(library, parallel_
         warnings.simplefilter("ignore")
         serial = meshrec.recognize(sim.touch, lib, probe_radius=tip, cascade=False)
         with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
-            parallel = meshrec.recognize(sim.touch, lib, probe_radius=tip, workers=workers)
+            parallel = meshrec.recognize(
+                sim.touch, lib, probe_radius=tip, workers=workers, cascade=False
+            )
     _same(serial, parallel)
     assert parallel.best.model == "b"
     # at the tip's offset: the data fit to about the noise, not the tip radius
     assert parallel.best.rms < 0.2 * tip
+
+
+# ------------------------------------------------------------------ with the cascade
+@pytest.fixture
+def screened_small(monkeypatch):
+    """The screen and parallel runs on three models, the screen with one leader: then, on
+    the touches of :func:`_cascade_touches`, the screen prunes, the cascade prunes after
+    the first stages and the lookup rejects models (the thresholds are for speed, not
+    correctness; all the decisions are taken in the caller's process)."""
+    monkeypatch.setattr(defaults, "PARALLEL_MIN_MODELS", 2)
+    monkeypatch.setattr(defaults, "SCREEN_MIN_MODELS", 2)
+    monkeypatch.setattr(defaults, "SCREEN_LEADERS", 1)
+
+
+def _cascade_touches(lib):
+    """On a (rng 3): b pruned by the cascade; on b (rng 4): a and c rejected; on b (rng 5):
+    a and c pruned by the screen; and the last two together."""
+    a3, b4, b5 = (
+        meshrec.simulate_touch(lib[n], rng=s).touch for n, s in (("a", 3), ("b", 4), ("b", 5))
+    )
+    return [a3, b4, b5, [b4, b5]]
+
+
+def _same_cascade(a, b):
+    """Two recognitions through the cascade agree in everything but their timings."""
+    _same(a, b)
+    for x, y in zip(a.ranking, b.ranking, strict=True):
+        assert (x.pruned, x.searches, x.raw_hits) == (y.pruned, y.searches, y.raw_hits)
+
+
+def _cascade_exercised(recs):
+    """The touches did take every branch of the cascade (else the test proves little)."""
+    regs = [r for rec in recs for r in rec.ranking]
+    assert any(r.pruned and len(r.candidate_points) == 1 for r in regs)  # by the screen
+    assert any(r.pruned and len(r.candidate_points) > 1 for r in regs)  # after 1st stages
+    assert any(r.rejected for r in regs)
+
+
+@pytest.mark.slow
+def test_local_processes_give_the_serial_cascades_result(library, screened_small):
+    lib, cache = library
+    touches = _cascade_touches(lib)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = [meshrec.recognize(t, lib) for t in touches]
+        with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
+            assert workers.mode == "processes"
+            calls = []
+            parallel = [
+                meshrec.recognize(t, lib, workers=workers, progress=lambda *a: calls.append(a))
+                for t in touches
+            ]
+    _cascade_exercised(serial)
+    for s, p in zip(serial, parallel, strict=True):
+        _same_cascade(s, p)
+    assert [s.best.model for s in serial] == ["a", "b", "b", "b"]
+    # progress: every model whose first stages ran, as they came back
+    assert all(c[1] == 3 for c in calls)
+    assert {c[2] for c in calls} == {"a", "b", "c"}
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_gives_the_serial_cascades_result(library, dask_cluster, screened_small):
+    lib, cache = library
+    touches = _cascade_touches(lib)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = [meshrec.recognize(t, lib) for t in touches]
+        with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
+            remote = [meshrec.recognize(t, lib, workers=workers) for t in touches]
+    _cascade_exercised(serial)
+    for s, r in zip(serial, remote, strict=True):
+        _same_cascade(s, r)

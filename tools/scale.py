@@ -62,8 +62,7 @@ def _library_folder(data: Path, n: int) -> Path:
 
 def _answer(rec) -> tuple:
     """What a recognition answers: the verdict, the plausible models, the best model and its
-    error. (The cascade runs in-process only: with workers every model gets the full
-    search, so the errors of models the cascade prunes, upper bounds, may differ.)"""
+    error (with workers the same screen and cascade run: the same answer, exactly)."""
     best = rec.best
     return (
         rec.verdict,

@@ -25,6 +25,14 @@ With ``defaults.SCREEN_MIN_MODELS`` models or more, :func:`cascade_register` fir
 library-wide screen (:mod:`meshrec.recognition.screen`): its leaders are registered in
 full, the models it prunes get its own pruned registration, and only the others enter the
 stages above.
+
+The decisions (the screen, its survivors, the cascade's survivors) are taken in the
+caller's process on whole sets of results; the per-model work between them runs in three
+batches of :class:`~meshrec.recognition.jobs.StageJob` (the screen's leaders; the
+screen's pruned registrations and the others' first stages; the full searches and the
+cascade's pruned registrations), here or on the workers of a
+:class:`~meshrec.recognition.workers.ModelWorkers` (local processes, a Dask cluster):
+the result is the same wherever they ran.
 """
 
 from __future__ import annotations
@@ -38,14 +46,19 @@ from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_instance
 from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
+from meshrec.recognition.jobs import StageJob, run_stages_here
 from meshrec.recognition.scoring import effective_points, noise_estimate
+from meshrec.recognition.screen import (
+    library_sites,
+    screen_leaders,
+    screen_library,
+    screen_survivors,
+)
 from meshrec.registration.pruned import pruned_from_start
 from meshrec.registration.register import (
     CoarseRegistration,
     Registration,
     StageTimes,
-    register_coarse,
-    register_full,
     touch_geometry,
 )
 from meshrec.registration.transform import superposition
@@ -184,8 +197,17 @@ def cascade_register(
     method: str = defaults.SEARCH_METHOD,
     progress=None,
     trace: bool = False,
+    run=None,
 ) -> list[Registration]:
     """Register one touch on every model through the cascade.
+
+    The per-model work runs in batches between the cascade's decisions, each batch on
+    ``run`` (a :class:`~meshrec.recognition.workers.ModelWorkers`: in this process, local
+    processes or a Dask cluster) or here: the screen's leaders; the screen's pruned
+    registrations and the other models' first stages; the full searches of the models
+    the cascade keeps and the pruned registrations of the others. The decisions (the
+    screen, its survivors, :func:`cascade_survivors`) are taken here on the whole set of
+    results, so the result is the same wherever the batches ran.
 
     Parameters
     ----------
@@ -198,9 +220,12 @@ def cascade_register(
     method : {"lm", "steepest"}
         The local-search optimiser.
     progress : callable, optional
-        ``progress(i, n, name)`` before each model's first stages.
+        ``progress(k, n, name)`` before each model's first stages (``k`` counting them,
+        ``n`` the models), or as they come back from the workers.
     trace : bool
         Keep the stage trace of the survivors' full searches (the pruned have none).
+    run : ModelWorkers, optional
+        Where the per-model batches run (default: here, in order).
 
     Returns
     -------
@@ -211,61 +236,84 @@ def cascade_register(
     Raises
     ------
     TypeError
-        If ``touch`` is not a TouchData, a model not a ModelIndex or ``geometry`` not a
-        LocalGeometry.
+        If ``touch`` is not a TouchData, a model not a ModelIndex, ``geometry`` not a
+        LocalGeometry or ``run`` has no ``run_stages``.
     ValueError
-        As :func:`register_coarse` and :func:`register_full`.
+        As :func:`register_coarse` and :func:`register_full`, or as ``run.run_stages``.
     """
     check_instance(touch, TouchData, "touch")
     check_instance(geometry, LocalGeometry, "geometry", optional=True)
+    if run is not None and not callable(getattr(run, "run_stages", None)):
+        raise TypeError(f"run must be a ModelWorkers or None, got {type(run).__name__}")
     if geometry is None:
         geometry = touch_geometry(touch)
     if noise is None:
         noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
     models = list(models)
-    out: list[Registration | None] = [None] * len(models)
-    first: dict[int, CoarseRegistration] = {}
-    stay = list(range(len(models)))
-    if len(models) >= defaults.SCREEN_MIN_MODELS:
-        # The library-wide screen first (imported here: it builds on the scores' rule as
-        # this module does). Its leaders are registered in full; the least rms they reach
-        # bounds the best model's, and the models that cannot come near it are pruned.
-        from meshrec.recognition.screen import (
-            library_sites,
-            screen_leaders,
-            screen_library,
-            screen_survivors,
-            screened_registration,
-        )
+    m = len(models)
+    started = [0]  # models whose first stages were reported
 
+    def batch(jobs: list[StageJob]) -> list:
+        def report(_k, job):
+            if progress is not None and job.kind in ("coarse", "leader"):
+                progress(started[0], m, job.model.name)
+                started[0] += 1
+
+        if run is None:
+            return run_stages_here(jobs, touch, geometry, method, trace, progress=report)
+        return run.run_stages(jobs, touch, geometry, method, trace=trace, progress=report)
+
+    out: list[Registration | None] = [None] * m
+    first: dict[int, CoarseRegistration] = {}
+    stay = list(range(m))
+    screen = None
+    if m >= defaults.SCREEN_MIN_MODELS:
+        # The library-wide screen first, here (one vectorised pass over all the models'
+        # sites). Its leaders are registered in full; the least rms they reach bounds the
+        # best model's, and the models that cannot come near it are pruned.
         screen = screen_library(touch, geometry, library_sites(models))
-        names = [m.name for m in models]
+        names = [mod.name for mod in models]
+        leaders = screen_leaders(screen, names, defaults.SCREEN_LEADERS).tolist()
         rms = []
-        for i in screen_leaders(screen, names, defaults.SCREEN_LEADERS).tolist():
-            if progress is not None:
-                progress(i, len(models), names[i])
-            first[i] = register_coarse(touch, models[i], geometry)
-            if not first[i].rejected:
-                out[i] = register_full(models[i], first[i], method=method, trace=trace)
-                rms.append(out[i].rms)
+        for i, (c, reg) in zip(
+            leaders, batch([StageJob("leader", models[i]) for i in leaders]), strict=True
+        ):
+            first[i] = c
+            if reg is not None:
+                out[i] = reg
+                rms.append(reg.rms)
         passed = screen_survivors(screen, int(touch.n_points), noise, min(rms) if rms else None)
         stay = [i for i in stay if passed[i] or i in first]
-        for i in np.flatnonzero(~passed):
-            if i not in first:
-                out[i] = screened_registration(touch, models[i], geometry, screen, int(i))
-    coarse = []
-    for i in stay:
-        if i not in first:
-            if progress is not None:
-                progress(i, len(models), models[i].name)
-            first[i] = register_coarse(touch, models[i], geometry)
-        coarse.append(first[i])
+        cut = [int(i) for i in np.flatnonzero(~passed) if int(i) not in first]
+    else:
+        cut = []
+    todo = [i for i in stay if i not in first]
+    # The screen's pruned registrations (a few refinement steps each) and the first
+    # stages of the others in one batch.
+    jobs = [
+        StageJob("screened", models[i], (screen, i), defaults.PARALLEL_COST_PRUNED) for i in cut
+    ]
+    jobs += [StageJob("coarse", models[i], cost=defaults.PARALLEL_COST_COARSE) for i in todo]
+    results = batch(jobs)
+    for i, reg in zip(cut, results[: len(cut)], strict=True):
+        out[i] = reg
+    for i, c in zip(todo, results[len(cut) :], strict=True):
+        first[i] = c
+    coarse = [first[i] for i in stay]
     keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
+    # The full searches of the survivors (cost: their local searches) and the pruned poses.
+    last, jobs = [], []
     for i, c, k in zip(stay, coarse, keep, strict=True):
         if out[i] is not None:
             continue  # a leader of the screen, registered in full already
-        if c.rejected or k:
-            out[i] = register_full(models[i], c, method=method, trace=trace)
+        last.append(i)
+        if c.rejected:
+            jobs.append(StageJob("full", models[i], c, 0.0))
+        elif k:
+            searches = min(defaults.LOCAL_SEARCHES, len(c.screening.candidates))
+            jobs.append(StageJob("full", models[i], c, searches / defaults.LOCAL_SEARCHES))
         else:
-            out[i] = pruned_registration(touch, models[i], c)
+            jobs.append(StageJob("pruned", models[i], c, defaults.PARALLEL_COST_PRUNED))
+    for i, reg in zip(last, batch(jobs), strict=True):
+        out[i] = reg
     return out

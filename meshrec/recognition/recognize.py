@@ -201,9 +201,9 @@ def recognize(
         the leaders'
         (:mod:`meshrec.recognition.cascade`); the others keep their best screened pose,
         refined. False: the full search on every model. Default ``defaults.CASCADE``.
-        The cascade runs in this process: with ``workers`` or ``scheduler`` in use the
-        full search runs on every model (the result of a serial run with
-        ``cascade=False``).
+        With ``workers`` or ``scheduler`` the cascade's decisions are taken here and its
+        per-model batches run on the workers: the result is that of a serial run with
+        the same ``cascade``.
 
     Returns
     -------
@@ -504,9 +504,10 @@ def _rank(touch, library, method, progress, geometry, run, cascade=False) -> Rec
         geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    if cascade and run.mode == "serial":
+    if cascade:
+        # the cascade's decisions here, its per-model batches on the workers
         noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
-        results = cascade_register(touch, models, geometry, noise, method, progress)
+        results = cascade_register(touch, models, geometry, noise, method, progress, run=run)
     else:
         results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
@@ -560,11 +561,11 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    if cascade and run.mode == "serial":
+    if cascade:
         # The first touch through the cascade: a model it prunes fits the first touch
         # alone far worse than the leaders, and a joint fit is worse still.
         regs = cascade_register(
-            touches[0], models, geometries[0], None, method, progress, trace=True
+            touches[0], models, geometries[0], None, method, progress, trace=True, run=run
         )
     else:
         regs = run.register_each(

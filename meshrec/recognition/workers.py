@@ -1,8 +1,12 @@
 """Where the per-model work of a recognition runs: here, in local processes, or on a Dask cluster.
 
-Each model is registered on its own (the result of one never depends on another), so the
-models of a library can be spread over processes and machines and the result is exactly
-that of a serial run: the same registrations, in the same order, the same warnings.
+Each model's work depends on no other model's, so the models of a library can be spread
+over processes and machines and the result is exactly that of a serial run: the same
+registrations, in the same order, the same warnings. With the cascade
+(:mod:`meshrec.recognition.cascade`) the decisions between its batches (the screen, which
+models are searched in full) are taken by the caller on the whole batch's results, and
+each batch of per-model jobs (:mod:`meshrec.recognition.jobs`) is spread over the
+workers in chunks of even expected cost (:meth:`ModelWorkers.run_stages`).
 
 A :class:`ModelWorkers` holds the library and the workers:
 
@@ -44,7 +48,7 @@ from meshrec.io.checks import check_instance
 from meshrec.model.cache import default_cache_dir
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.probe import probe_model, probe_radius_of
-from meshrec.registration.register import register
+from meshrec.recognition.jobs import StageJob, balanced_chunks, run_stage, run_stages_here
 
 __all__ = ["ModelWorkers", "available_cores"]
 
@@ -114,39 +118,32 @@ def _warm(spec: _Spec) -> int:
     return len(_load(spec))
 
 
-def _register_chunk(
-    spec: _Spec, fingerprints, touch, geometry, method, lookup_scale, trace, radii=None
-):
-    """Register ``touch`` on the models of ``fingerprints`` (in a worker).
+def _stage_chunk(spec: _Spec, items, touch, geometry, method, lookup_scale, trace):
+    """Run a chunk of :class:`~meshrec.recognition.jobs.StageJob` (in a worker).
 
-    ``radii`` holds each model's probe radius (:func:`meshrec.model.probe.probe_model`:
-    the worker's models are loaded plain), None for all 0.
+    ``items`` holds per job ``(kind, fingerprint, radius, payload, cost)``: the model by
+    its fingerprint, seen through a probe tip of ``radius``
+    (:func:`meshrec.model.probe.probe_model`: the worker's models are loaded plain).
 
-    Returns, per model in order, ``(registration, [(category, message), ...])``: the
-    warnings are returned to be raised again by the caller.
+    Returns, per job in order, ``(result, [(category, message), ...])``: the warnings are
+    returned to be raised again by the caller.
     """
     models = _load(spec)
     out = []
-    for j, fp in enumerate(fingerprints):
+    for kind, fp, radius, payload, cost in items:
         model, have = models.get(fp[0], (None, None))
         if have != tuple(fp):
             raise ValueError(
                 f"model {fp[0]!r} differs in the worker (loaded {have}, expected {tuple(fp)}): "
                 "its file changed since the library was loaded, or the worker sees other files"
             )
-        if radii is not None and radii[j] > 0.0:
-            model = probe_model(model, radii[j])
+        if radius > 0.0:
+            model = probe_model(model, radius)
+        job = StageJob(kind, model, payload, cost)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            reg = register(
-                touch,
-                model,
-                geometry=geometry,
-                method=method,
-                trace=trace,
-                lookup_scale=lookup_scale,
-            )
-        out.append((reg, [(w.category, str(w.message)) for w in caught]))
+            result = run_stage(job, touch, geometry, method, trace, lookup_scale)
+        out.append((result, [(w.category, str(w.message)) for w in caught]))
     return out
 
 
@@ -312,65 +309,131 @@ class ModelWorkers:
         RuntimeError
             If the workers were closed.
         """
-        models = list(models)
-        for m in models:
+        jobs = [StageJob("register", m) for m in models]
+        n = len(jobs)
+        report = None
+        if progress is not None:
+
+            def report(k, job):
+                progress(k, n, job.model.name)
+
+        return self.run_stages(
+            jobs, touch, geometry, method, trace=trace, lookup_scale=lookup_scale, progress=report
+        )
+
+    def run_stages(
+        self,
+        jobs: Sequence[StageJob],
+        touch,
+        geometry,
+        method: str,
+        trace: bool = False,
+        lookup_scale: float = 1.0,
+        progress: Callable[[int, StageJob], None] | None = None,
+    ) -> list:
+        """Run a batch of per-model jobs (:mod:`meshrec.recognition.jobs`) on the workers.
+
+        In parallel the jobs are split into about ``defaults.PARALLEL_CHUNKS_PER_WORKER``
+        chunks per worker of even expected cost (``StageJob.cost``,
+        :func:`~meshrec.recognition.jobs.balanced_chunks`), the costliest submitted
+        first; the jobs of cost at most ``defaults.PARALLEL_HERE_COST`` run in this
+        process meanwhile.
+
+        Parameters
+        ----------
+        jobs : sequence of StageJob
+            On models of this library.
+        touch : TouchData
+        geometry : LocalGeometry
+            The touch's local geometry (shared by all models).
+        method : str
+        trace : bool
+        lookup_scale : float
+            As for :func:`~meshrec.recognition.jobs.run_stage`.
+        progress : callable, optional
+            ``progress(k, job)``: before the ``k``-th job (serial), or as the results come
+            in, ``k`` counting them (in parallel).
+
+        Returns
+        -------
+        list
+            :func:`~meshrec.recognition.jobs.run_stage`'s result per job, in the order
+            of ``jobs``; the warnings each job raised are raised again here, in that order.
+
+        Raises
+        ------
+        TypeError
+            If a job is not a StageJob.
+        ValueError
+            If a job's model is not one of this library's (or differs from it in a
+            worker), or as the stage's own function.
+        RuntimeError
+            If the workers were closed.
+        """
+        jobs = list(jobs)
+        for i, job in enumerate(jobs):
+            check_instance(job, StageJob, f"jobs[{i}]")
+            m = job.model
             known = self._by_name.get(m.name)
             if known is not m and self._fingerprints.get(m.name) != _fingerprint(m):
                 raise ValueError(f"models must belong to the workers' library, got {m.name!r}")
-        n = len(models)
+        n = len(jobs)
         if self.mode == "serial" or n == 0:
-            out = []
-            for i, model in enumerate(models):
-                if progress is not None:
-                    progress(i, n, model.name)
-                out.append(
-                    register(
-                        touch,
-                        model,
-                        geometry=geometry,
-                        method=method,
-                        trace=trace,
-                        lookup_scale=lookup_scale,
-                    )
-                )
-            return out
+            return run_stages_here(jobs, touch, geometry, method, trace, lookup_scale, progress)
         if self._pool is None and self._client is None:
             raise RuntimeError("the workers were closed")
-        # Interleaved chunks, a few per worker: even loads, few round trips.
-        k = min(n, self.workers * defaults.PARALLEL_CHUNKS_PER_WORKER)
-        chunks = [list(range(start, n, k)) for start in range(k)]
+        # The cheapest jobs (a pruned pose: a few refinement steps) run here while the
+        # workers run the others: no round trip of their inputs, and this process waits
+        # anyway.
+        here = [i for i, job in enumerate(jobs) if job.cost <= defaults.PARALLEL_HERE_COST]
+        away = [i for i, job in enumerate(jobs) if job.cost > defaults.PARALLEL_HERE_COST]
+        chunks = [
+            [away[j] for j in c]
+            for c in balanced_chunks(
+                [jobs[i].cost for i in away], self.workers * defaults.PARALLEL_CHUNKS_PER_WORKER
+            )
+        ]
         args = (geometry, method, float(lookup_scale), bool(trace))
         # the models may be seen through a probe tip (recognize's probe_radius)
-        radii = [probe_radius_of(m) for m in models]
+        items = {
+            i: (
+                jobs[i].kind,
+                self._fingerprints[jobs[i].model.name],
+                probe_radius_of(jobs[i].model),
+                jobs[i].payload,
+                jobs[i].cost,
+            )
+            for i in away
+        }
         # Dask's submit re-runs nothing by default (pure=False: every call is new work)
         extra = {"pure": False} if self._client is not None else {}
         executor = self._client if self._client is not None else self._pool
         futures = [
-            executor.submit(
-                _register_chunk,
-                self._spec,
-                [self._fingerprints[models[i].name] for i in c],
-                touch,
-                *args,
-                [radii[i] for i in c],
-                **extra,
-            )
+            executor.submit(_stage_chunk, self._spec, [items[i] for i in c], touch, *args, **extra)
             for c in chunks
         ]
-        results = [f.result() for f in futures]
         out = [None] * n
         done = 0
+        for i in here:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                result = run_stage(jobs[i], touch, geometry, method, trace, lookup_scale)
+            out[i] = (result, [(w.category, str(w.message)) for w in caught])
+            if progress is not None:
+                progress(done, jobs[i])
+            done += 1
+        results = [f.result() for f in futures]
         for c, res in zip(chunks, results, strict=True):
             for i, item in zip(c, res, strict=True):
                 out[i] = item
                 if progress is not None:
-                    progress(done, n, models[i].name)
+                    progress(done, jobs[i])
                 done += 1
         regs = []
-        for reg, caught in out:
+        for result, caught in out:
             for category, message in caught:
                 warnings.warn(message, category, stacklevel=2)
-            regs.append(reg)
+            regs.append(result)
         return regs
 
 
