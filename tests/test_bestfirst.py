@@ -1,0 +1,115 @@
+"""Joint fits most promising model first: against every model registered on every touch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+import meshrec
+from meshrec import defaults
+from meshrec.recognition import joint
+from meshrec.recognition.bestfirst import fit_best_first
+from meshrec.recognition.scoring import fit_p_value, log_likelihoods, noise_estimate
+from meshrec.registration.register import register, touch_geometry
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """An ellipsoid, a capsule and a torus, about 5k faces each."""
+    folder = tmp_path_factory.mktemp("models")
+    ellipsoid = trimesh.creation.icosphere(subdivisions=4)
+    ellipsoid.apply_scale([1.0, 0.8, 0.5])
+    ellipsoid.export(folder / "ellipsoid.stl")
+    trimesh.creation.capsule(height=1.0, radius=0.5, count=[48, 48]).export(folder / "capsule.stl")
+    trimesh.creation.torus(0.8, 0.3, major_sections=96, minor_sections=48).export(
+        folder / "torus.stl"
+    )
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path_factory.mktemp("cache"))
+
+
+@pytest.fixture(scope="module")
+def on_torus(library):
+    """Three seeded touches of the torus at a random pose, their geometries and noise, and
+    every model's first touch registered alone."""
+    rng = np.random.default_rng(11)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+    touches = [
+        meshrec.simulate_touch(
+            library["torus"], length=0.3, noise=0.002, rng=rng, transform=False
+        ).touch.transformed(T)
+        for _ in range(3)
+    ]
+    geometries = [touch_geometry(t) for t in touches]
+    noises = [
+        noise_estimate(g.fit_rms, g.noise_rms, g.half_length)
+        for g in geometries
+    ]
+    noise = joint.pooled_noise(noises, [t.n_points for t in touches])
+    models = [library[name] for name in library.names]
+    firsts = {
+        m.name: joint.first_touch_fit(
+            touches, m, register(touches[0], m, geometry=geometries[0], trace=True)
+        )
+        for m in models
+    }
+    return touches, geometries, noise, models, firsts
+
+
+def test_best_first_keeps_every_model_that_could_compete(on_torus):
+    """Brute-force twin: every model registered on every touch. A model the best-first
+    search stopped early either fits to the noise or is far below its leader, and even
+    registered on everything it would not come within the prune ratio of it."""
+    touches, geometries, noise, models, firsts = on_torus
+    n = sum(t.n_points for t in touches)
+    fits = fit_best_first(touches, models, geometries, firsts, noise)
+    assert list(fits) == [m.name for m in models]
+    ll = {k: float(log_likelihoods([f.registration.rms], n, noise)[0]) for k, f in fits.items()}
+    leader = max(ll.values())
+    assert max(ll, key=ll.get) == "torus"
+    assert fit_p_value(fits["torus"].registration.rms, n, noise) >= defaults.WIDEN_P_VALUE
+    stopped = 0
+    for m in models:
+        fit = fits[m.name]
+        full = joint.register_touches(
+            touches, m, geometries, upto=len(touches), previous=firsts[m.name], noise=noise
+        )
+        full_ll = float(log_likelihoods([full.registration.rms], n, noise)[0])
+        if fit.registered < len(touches) and m.name != "torus":
+            stopped += 1
+            assert joint.log_likelihood_bound(fit, touches, noise) < (
+                leader + defaults.JOINT_PRUNE_LOG_RATIO
+            )
+            assert full_ll < leader + defaults.JOINT_PRUNE_LOG_RATIO
+        # the leader found first is the one the exhaustive search finds
+        assert full_ll <= leader + 1e-6 or m.name == "torus"
+    assert stopped >= 1  # the premise: some model was pruned before all its touches
+
+
+def test_the_order_of_the_models_changes_nothing(on_torus):
+    touches, geometries, noise, models, firsts = on_torus
+    a = fit_best_first(touches, models, geometries, firsts, noise)
+    b = fit_best_first(touches, models[::-1], geometries, firsts, noise)
+    assert {k: f.registration.rms for k, f in a.items()} == {
+        k: f.registration.rms for k, f in b.items()
+    }
+    assert {k: f.registered for k, f in a.items()} == {k: f.registered for k, f in b.items()}
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ("geometries", "geometries must hold one LocalGeometry per touch"),
+        ("firsts", "firsts must hold every model's first fit, missing"),
+        ("noise", "noise must be positive and finite, got"),
+    ],
+)
+def test_bad_input_raises(on_torus, change, match):
+    touches, geometries, noise, models, firsts = on_torus
+    args = {"geometries": geometries, "firsts": firsts, "noise": noise}
+    args[change] = {"geometries": geometries[:2], "firsts": {}, "noise": 0.0}[change]
+    with pytest.raises(ValueError, match=match):
+        fit_best_first(touches, models, args["geometries"], args["firsts"], args["noise"])
