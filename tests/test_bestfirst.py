@@ -44,10 +44,7 @@ def on_torus(library):
         for _ in range(3)
     ]
     geometries = [touch_geometry(t) for t in touches]
-    noises = [
-        noise_estimate(g.fit_rms, g.noise_rms, g.half_length)
-        for g in geometries
-    ]
+    noises = [noise_estimate(g.fit_rms, g.noise_rms, g.half_length) for g in geometries]
     noise = joint.pooled_noise(noises, [t.n_points for t in touches])
     models = [library[name] for name in library.names]
     firsts = {
