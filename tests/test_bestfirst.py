@@ -110,3 +110,31 @@ def test_bad_input_raises(on_torus, change, match):
     args[change] = {"geometries": geometries[:2], "firsts": {}, "noise": 0.0}[change]
     with pytest.raises(ValueError, match=match):
         fit_best_first(touches, models, args["geometries"], args["firsts"], args["noise"])
+
+
+def test_a_hopeless_model_keeps_its_coarse_poses_an_upper_bound(on_torus):
+    """With a tiny ``hopeless_rms`` the fine stage is skipped: the poses are each scored
+    where the coarse stage left them, no better than the refined ones; with a huge one,
+    the fine stage runs as without it."""
+    touches, geometries, _noise, models, firsts = on_torus
+    model = next(m for m in models if m.name == "torus")
+    seeds = [p.T_model_touch for p in firsts["torus"].registration.poses]
+    assert seeds
+    refined = joint.joint_poses(model, touches, seeds, geometries[0])
+    same = joint.joint_poses(model, touches, seeds, geometries[0], hopeless_rms=1e3)
+    coarse = joint.joint_poses(model, touches, seeds, geometries[0], hopeless_rms=1e-9)
+    assert [p.rms for p in same] == [p.rms for p in refined]
+    assert coarse[0].rms >= refined[0].rms
+    assert coarse[0].rms != refined[0].rms  # the premise: refining did change the fit
+    points = np.vstack([t.points for t in touches])
+    for pose in coarse:  # each RMS is that of its own pose on all the points
+        y = points @ pose.T_model_touch[:3, :3].T + pose.T_model_touch[:3, 3]
+        d = model.surface.closest_points(y)[0]
+        assert pose.rms == pytest.approx(np.sqrt(np.mean(d**2)), rel=0.25)
+
+
+def test_joint_poses_refuses_a_hopeless_rms_that_is_not_positive(on_torus):
+    touches, geometries, _noise, models, firsts = on_torus
+    seeds = [p.T_model_touch for p in firsts["torus"].registration.poses]
+    with pytest.raises(ValueError, match=r"hopeless_rms must be positive, got 0\.0"):
+        joint.joint_poses(models[0], touches, seeds, geometries[0], hopeless_rms=0.0)

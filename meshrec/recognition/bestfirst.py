@@ -7,7 +7,9 @@ joint fit explains every touch to the noise, or when even its best conceivable f
 (:func:`~meshrec.recognition.joint.log_likelihood_bound`: the touches registered so far
 each at its own best, the others perfect) is ``defaults.JOINT_PRUNE_LOG_RATIO`` below
 the best joint fit found so far (the leader): it cannot become plausible, whatever its
-remaining touches give.
+remaining touches give. A model whose joint fit is that far below the leader even
+before its fine refinement (:func:`~meshrec.recognition.joint.joint_poses`,
+``hopeless_rms``) skips it.
 
 The steps run best bound first (ties by model name: an order of the data, not of the
 library), so the leader is found early and prunes the others before their costly steps.
@@ -21,13 +23,14 @@ within ``-defaults.JOINT_PRUNE_LOG_RATIO`` of the final leader or fits to the no
 from __future__ import annotations
 
 import heapq
+import math
 from collections.abc import Sequence
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.joint import JointFit, log_likelihood_bound, register_touches
-from meshrec.recognition.scoring import fit_p_value, log_likelihoods
+from meshrec.recognition.scoring import effective_points, fit_p_value, log_likelihoods
 
 __all__ = ["fit_best_first"]
 
@@ -107,6 +110,7 @@ def fit_best_first(
             previous=fit,
             method=method,
             noise=noise if refined else None,
+            hopeless_rms=_hopeless_rms(leader, n, noise),
         )
         fits[name] = fit
         reg = fit.registration
@@ -118,3 +122,11 @@ def fit_best_first(
         if fit.registered < len(touches):
             heapq.heappush(heap, (-log_likelihood_bound(fit, touches, noise), name, True))
     return fits
+
+
+def _hopeless_rms(leader: float, n: int, noise: float) -> float:
+    """The joint RMS over ``n`` points whose log-likelihood is ``defaults.JOINT_PRUNE_LOG_RATIO``
+    below ``leader`` (``inf`` while there is no leader)."""
+    if not math.isfinite(leader):
+        return math.inf
+    return noise * math.sqrt(-2.0 * (leader + defaults.JOINT_PRUNE_LOG_RATIO) / effective_points(n))

@@ -169,6 +169,7 @@ def joint_poses(
     *,
     best: int = defaults.JOINT_REFINE_SEEDS,
     start_ratio: float = defaults.JOINT_KEEP_RATIO,
+    hopeless_rms: float = np.inf,
 ) -> tuple[PoseHypothesis, ...]:
     """Refine poses of the object jointly on every touch's points; the distinct results.
 
@@ -205,12 +206,15 @@ def joint_poses(
     Raises
     ------
     ValueError
-        If ``best`` is not a positive integer or ``start_ratio`` is not at least 1.
+        If ``best`` is not a positive integer, ``start_ratio`` is not at least 1 or
+        ``hopeless_rms`` is not positive.
     """
     if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
         raise ValueError(f"best must be a positive integer, got {best!r}")
     if not start_ratio >= 1:
         raise ValueError(f"start_ratio must be at least 1, got {start_ratio!r}")
+    if not hopeless_rms > 0:
+        raise ValueError(f"hopeless_rms must be positive, got {hopeless_rms!r}")
     if len(seeds) == 0:
         return ()
     points = np.vstack([t.points for t in touches])
@@ -235,6 +239,11 @@ def joint_poses(
     least = min(c.rms for c in coarse)
     kept = [c.T_model_touch for c in coarse if c.rms <= defaults.JOINT_KEEP_RATIO * least]
     kept = _merged(kept, sub, tol)
+    if np.isfinite(hopeless_rms):
+        scored = refine_rigid_batch(model, points, np.array(kept), max_iter=0)
+        if min(r.rms for r in scored) > defaults.JOINT_FINE_GAIN * hopeless_rms:
+            out = sorted((refined_pose(model, r, geometry.point) for r in scored), key=_rms)
+            return distinct_poses(out, float(geometry.half_length))
     refs = refine_rigid_batch(model, points, np.array(kept))
     # Along a nearly free motion (a turn of a bumped sphere about its centre) the
     # point-to-plane steps crawl, a few per cent of the way per iteration, and the
@@ -248,9 +257,13 @@ def joint_poses(
             model, points, refs[k].T_model_touch[None], max_iter=defaults.JOINT_POLISH_ITER
         )[0]
         refs[k] = dataclasses.replace(more, iterations=refs[k].iterations + more.iterations)
-    out = [refined_pose(model, ref, geometry.point) for ref in refs]
-    out.sort(key=lambda p: p.rms)
+    out = sorted((refined_pose(model, ref, geometry.point) for ref in refs), key=_rms)
     return distinct_poses(out, float(geometry.half_length))
+
+
+def _rms(pose: PoseHypothesis) -> float:
+    """A pose's RMS, the sort key of pose lists."""
+    return pose.rms
 
 
 def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float) -> list:
@@ -305,6 +318,7 @@ def register_touches(
     method: str = defaults.SEARCH_METHOD,
     lookup_scale: float = 1.0,
     noise: float | None = None,
+    hopeless_rms: float = np.inf,
 ) -> JointFit:
     """Register several touches of one object on one model at one rigid pose.
 
@@ -336,6 +350,9 @@ def register_touches(
         touch at its best bracketed angles (:func:`candidate_seeds`) seeds the joint
         refinement too (the touches' distinct poses may all be slid along a nearly
         flat or symmetric patch, off the one pose that fits them all).
+    hopeless_rms : float
+        A joint RMS above which this model cannot compete with the best fit so far
+        (:func:`joint_poses`; ``inf``: none).
 
     Returns
     -------
@@ -344,8 +361,8 @@ def register_touches(
     Raises
     ------
     ValueError
-        If ``upto`` is outside 1 to ``len(touches)`` or ``geometries`` does not match
-        ``touches``.
+        If ``upto`` is outside 1 to ``len(touches)``, ``geometries`` does not match
+        ``touches`` or ``hopeless_rms`` is not positive (:func:`joint_poses`).
     """
     if len(geometries) != len(touches):
         raise ValueError(
@@ -377,7 +394,7 @@ def register_touches(
     seeds = [p.T_model_touch for p in previous.registration.poses] if previous else []
     seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
     t1 = time.perf_counter()
-    poses = joint_poses(model, touches, seeds, geometries[0])
+    poses = joint_poses(model, touches, seeds, geometries[0], hopeless_rms=hopeless_rms)
     n = int(sum(t.n_points for t in touches))
     if (
         noise is not None
@@ -385,7 +402,11 @@ def register_touches(
         and (not poses or fit_p_value(poses[0].rms, n, noise) < defaults.WIDEN_P_VALUE)
     ):
         more = [T for reg in single for T in candidate_seeds(reg)]
-        found = joint_poses(model, touches, more, geometries[0]) if more else ()
+        found = (
+            joint_poses(model, touches, more, geometries[0], hopeless_rms=hopeless_rms)
+            if more
+            else ()
+        )
         poses = distinct_poses(
             sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
         )
