@@ -138,3 +138,19 @@ def test_joint_poses_refuses_a_hopeless_rms_that_is_not_positive(on_torus):
     seeds = [p.T_model_touch for p in firsts["torus"].registration.poses]
     with pytest.raises(ValueError, match=r"hopeless_rms must be positive, got 0\.0"):
         joint.joint_poses(models[0], touches, seeds, geometries[0], hopeless_rms=0.0)
+
+
+def test_rms_out_of_reach_is_where_the_log_likelihood_falls_by_the_prune_ratio():
+    noise, n = 0.0012, 549
+    leader = float(log_likelihoods([0.0013], n, noise)[0])
+    rms = joint.rms_out_of_reach(leader, n, noise)
+    ll = float(log_likelihoods([rms], n, noise)[0])
+    assert ll == pytest.approx(leader + defaults.JOINT_PRUNE_LOG_RATIO)
+    assert rms > 0.0013
+    assert joint.rms_out_of_reach(float("-inf"), n, noise) == float("inf")
+
+
+@pytest.mark.parametrize("leader", [0.5, float("nan")])
+def test_rms_out_of_reach_refuses_a_leader_that_is_no_log_likelihood(leader):
+    with pytest.raises(ValueError, match="leader must be a log-likelihood"):
+        joint.rms_out_of_reach(leader, 100, 0.001)

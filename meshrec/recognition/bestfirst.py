@@ -23,14 +23,18 @@ within ``-defaults.JOINT_PRUNE_LOG_RATIO`` of the final leader or fits to the no
 from __future__ import annotations
 
 import heapq
-import math
 from collections.abc import Sequence
 
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
-from meshrec.recognition.joint import JointFit, log_likelihood_bound, register_touches
-from meshrec.recognition.scoring import effective_points, fit_p_value, log_likelihoods
+from meshrec.recognition.joint import (
+    JointFit,
+    log_likelihood_bound,
+    register_touches,
+    rms_out_of_reach,
+)
+from meshrec.recognition.scoring import fit_p_value, log_likelihoods
 
 __all__ = ["fit_best_first"]
 
@@ -110,7 +114,7 @@ def fit_best_first(
             previous=fit,
             method=method,
             noise=noise if refined else None,
-            hopeless_rms=_hopeless_rms(leader, n, noise),
+            hopeless_rms=rms_out_of_reach(leader, n, noise),
         )
         fits[name] = fit
         reg = fit.registration
@@ -122,11 +126,3 @@ def fit_best_first(
         if fit.registered < len(touches):
             heapq.heappush(heap, (-log_likelihood_bound(fit, touches, noise), name, True))
     return fits
-
-
-def _hopeless_rms(leader: float, n: int, noise: float) -> float:
-    """The joint RMS over ``n`` points whose log-likelihood is ``defaults.JOINT_PRUNE_LOG_RATIO``
-    below ``leader`` (``inf`` while there is no leader)."""
-    if not math.isfinite(leader):
-        return math.inf
-    return noise * math.sqrt(-2.0 * (leader + defaults.JOINT_PRUNE_LOG_RATIO) / effective_points(n))

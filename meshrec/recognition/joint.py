@@ -28,7 +28,7 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
-from meshrec.recognition.scoring import effective_points, fit_p_value
+from meshrec.recognition.scoring import effective_points, fit_p_value, log_likelihoods
 from meshrec.recognition.weak import weak_motion_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import residuals
@@ -47,6 +47,7 @@ __all__ = [
     "log_likelihood_bound",
     "pooled_noise",
     "register_touches",
+    "rms_out_of_reach",
     "search_pairs",
     "touch_rms",
 ]
@@ -420,6 +421,7 @@ def search_pairs(
     previous: JointFit,
     *,
     lookup_scale: float = 1.0,
+    hopeless_rms: float = np.inf,
 ) -> JointFit:
     """Search a model's joint pose again from pairs of touches (:func:`pair_seeds`).
 
@@ -442,6 +444,9 @@ def search_pairs(
         registrations are kept.
     lookup_scale : float
         Factor widening the (K, H) lookup window.
+    hopeless_rms : float
+        A joint RMS above which the model cannot compete (:func:`joint_poses`; ``inf``:
+        none).
 
     Returns
     -------
@@ -451,12 +456,18 @@ def search_pairs(
     Raises
     ------
     ValueError
-        As :func:`pair_seeds`.
+        As :func:`pair_seeds` and :func:`joint_poses`.
     """
     t0 = time.perf_counter()
     seeds = pair_seeds(touches, model, geometries, lookup_scale=lookup_scale)
     found = joint_poses(
-        model, touches, seeds, geometries[0], best=defaults.PAIR_REFINE_SEEDS, start_ratio=np.inf
+        model,
+        touches,
+        seeds,
+        geometries[0],
+        best=defaults.PAIR_REFINE_SEEDS,
+        start_ratio=np.inf,
+        hopeless_rms=hopeless_rms,
     )
     return _with_poses(model, touches, geometries, previous, found, t0)
 
@@ -651,6 +662,39 @@ def _fit(model, touches, single, poses, t_joint: float, t0: float) -> JointFit:
         single=tuple(single),
         touch_rms=touch_rms(model, touches, best.T_model_touch),
     )
+
+
+def rms_out_of_reach(leader: float, n_points: int, noise: float) -> float:
+    """The joint RMS at which a model is ``defaults.JOINT_PRUNE_LOG_RATIO`` below a leader.
+
+    Parameters
+    ----------
+    leader : float
+        The best joint log-likelihood so far (see
+        :func:`~meshrec.recognition.scoring.log_likelihoods`); ``-inf`` while none.
+    n_points : int
+        The touches' points, >= 1.
+    noise : float
+        The pooled noise (:func:`pooled_noise`), > 0.
+
+    Returns
+    -------
+    float
+        The RMS whose log-likelihood is ``leader + defaults.JOINT_PRUNE_LOG_RATIO``
+        (``inf`` without a leader): a fit worse than that cannot compete.
+
+    Raises
+    ------
+    ValueError
+        If ``leader`` is NaN or positive, or as
+        :func:`~meshrec.recognition.scoring.log_likelihoods`.
+    """
+    if not leader <= 0:
+        raise ValueError(f"leader must be a log-likelihood (<= 0), got {leader!r}")
+    if leader == -np.inf:
+        return float(np.inf)
+    unit = -float(log_likelihoods([1.0], n_points, noise)[0])  # -ll of an RMS of 1
+    return float(np.sqrt(-(leader + defaults.JOINT_PRUNE_LOG_RATIO) / unit))
 
 
 def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: float) -> float:

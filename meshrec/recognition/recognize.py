@@ -28,6 +28,7 @@ from meshrec.recognition.joint import (
     log_likelihood_bound,
     pooled_noise,
     register_touches,
+    rms_out_of_reach,
     search_pairs,
 )
 from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
@@ -624,7 +625,8 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
                     noise=noise,
                 )
             if log_likelihood_bound(fit, touches, noise) >= leader - gap:
-                fit = search_pairs(touches, model, geometries, fit)
+                far = rms_out_of_reach(leader, n, noise)
+                fit = search_pairs(touches, model, geometries, fit, hopeless_rms=far)
             fits[model.name] = fit
 
 
