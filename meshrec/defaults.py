@@ -447,6 +447,13 @@ JOINT_FINE_GAIN = 3.0
 #: touches: every further touch can only lower its likelihood (the models' steps run best
 #: bound first, meshrec.recognition.bestfirst; e^-14 ~ 1e-6, far below any plausible set).
 JOINT_PRUNE_LOG_RATIO = -14.0
+#: A touch not yet registered alone on a model is taken, in the model's best conceivable
+#: fit, to fit no closer than this times its own noise level (the smaller of its curves'
+#: fit RMS and its noise estimate; 0 would take it as fitting perfectly). Measured on the
+#: 244 single-touch registrations of tools/touches.py --sets 5 6 (every model, noise
+#: +-0.002): the touch's RMS alone over that level was at least 0.924 (median 1.33);
+#: 0.75 leaves a margin of 1.5 in the squared residuals.
+JOINT_UNREGISTERED_FLOOR = 0.75
 
 #: The recognition's cascade (meshrec.recognition.cascade): with one touch, every model's
 #: first stages (lookup, phi, screening) run first, and the local searches only on the

@@ -154,3 +154,26 @@ def test_rms_out_of_reach_is_where_the_log_likelihood_falls_by_the_prune_ratio()
 def test_rms_out_of_reach_refuses_a_leader_that_is_no_log_likelihood(leader):
     with pytest.raises(ValueError, match="leader must be a log-likelihood"):
         joint.rms_out_of_reach(leader, 100, 0.001)
+
+
+def test_the_bound_with_a_floor_is_tighter_and_still_above_the_registered_touches(on_torus):
+    """Brute-force twin: every touch registered alone on every model. The bound after the
+    first touch, with the unregistered touches at their floor, is below the bound that
+    takes them as perfect, and above the bound with every touch registered."""
+    touches, geometries, noise, models, firsts = on_torus
+    for m in models:
+        first = firsts[m.name]
+        if first.registration.rejected:
+            continue
+        loose = joint.log_likelihood_bound(first, touches, noise)
+        tight = joint.log_likelihood_bound(first, touches, noise, geometries)
+        full = joint.register_touches(touches, m, geometries, upto=3, previous=first)
+        registered = joint.log_likelihood_bound(full, touches, noise, geometries)
+        assert registered <= tight < loose
+        assert joint.log_likelihood_bound(full, touches, noise) == registered
+
+
+def test_the_bound_refuses_geometries_that_do_not_match(on_torus):
+    touches, geometries, noise, _models, firsts = on_torus
+    with pytest.raises(ValueError, match=r"geometries must hold one LocalGeometry per touch \(3\)"):
+        joint.log_likelihood_bound(firsts["torus"], touches, noise, geometries[:1])

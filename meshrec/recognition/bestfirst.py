@@ -4,20 +4,21 @@ Per model, the work of a joint fit comes in steps: refine the first touch's pose
 touch's points, then register the second touch alone and refine again, then the third,
 and so on (:func:`meshrec.recognition.joint.register_touches`). A model stops when its
 joint fit explains every touch to the noise, or when even its best conceivable fit
-(:func:`~meshrec.recognition.joint.log_likelihood_bound`: the touches registered so far
-each at its own best, the others perfect) is ``defaults.JOINT_PRUNE_LOG_RATIO`` below
-the best joint fit found so far (the leader): it cannot become plausible, whatever its
-remaining touches give. A model whose joint fit is that far below the leader even
-before its fine refinement (:func:`~meshrec.recognition.joint.joint_poses`,
-``hopeless_rms``) skips it.
+(:func:`~meshrec.recognition.joint.log_likelihood_bound`: each touch registered so far
+at its own best, the others at a floor below their own noise) is
+``defaults.JOINT_PRUNE_LOG_RATIO`` below the best joint fit found so far (the leader):
+it cannot become plausible, whatever its remaining touches give. A model whose joint fit
+is that far below the leader even before its fine refinement
+(:func:`~meshrec.recognition.joint.joint_poses`, ``hopeless_rms``) skips it.
 
 The steps run best bound first (ties by model name: an order of the data, not of the
 library), so the leader is found early and prunes the others before their costly steps.
 Taken touch by touch over every model instead, every model that fits each touch alone
 (the usual case on smooth shapes) registered all its touches before any model had its
-joint fit. The bound only falls as touches are registered and the leader only rises, so
-a model pruned here would have been pruned at the end too: every model that is not is
-within ``-defaults.JOINT_PRUNE_LOG_RATIO`` of the final leader or fits to the noise.
+joint fit. The bound only falls as touches are registered (a touch fits no better than
+its floor) and the leader only rises, so a model pruned here would have been pruned at
+the end too: every model that is not is within ``-defaults.JOINT_PRUNE_LOG_RATIO`` of
+the final leader or fits to the noise.
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ def fit_best_first(
     # refines its first touch's poses on every touch (refined False), each later step
     # registers one more touch alone.
     heap = [
-        (-log_likelihood_bound(fit, touches, noise), name, False)
+        (-log_likelihood_bound(fit, touches, noise, geometries), name, False)
         for name, fit in fits.items()
         if not fit.registration.rejected
     ]
@@ -124,5 +125,6 @@ def fit_best_first(
         if fit_p_value(reg.rms, n, noise) >= defaults.WIDEN_P_VALUE:
             continue  # fits every touch to the noise already
         if fit.registered < len(touches):
-            heapq.heappush(heap, (-log_likelihood_bound(fit, touches, noise), name, True))
+            bound = log_likelihood_bound(fit, touches, noise, geometries)
+            heapq.heappush(heap, (-bound, name, True))
     return fits

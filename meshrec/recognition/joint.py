@@ -28,7 +28,12 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
-from meshrec.recognition.scoring import effective_points, fit_p_value, log_likelihoods
+from meshrec.recognition.scoring import (
+    effective_points,
+    fit_p_value,
+    log_likelihoods,
+    noise_estimate,
+)
 from meshrec.recognition.weak import weak_motion_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import residuals
@@ -697,12 +702,21 @@ def rms_out_of_reach(leader: float, n_points: int, noise: float) -> float:
     return float(np.sqrt(-(leader + defaults.JOINT_PRUNE_LOG_RATIO) / unit))
 
 
-def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: float) -> float:
+def log_likelihood_bound(
+    fit: JointFit,
+    touches: Sequence[TouchData],
+    noise: float,
+    geometries: Sequence[LocalGeometry] | None = None,
+) -> float:
     """The most log-likelihood a model could still reach on all the touches.
 
     The joint fit's squared residuals add up over the touches, and no pose fits a touch
     better than that touch's own best registration, so the joint log-likelihood is at
-    most the sum of the registered touches' own (the others' at most 0). A model whose
+    most the sum of the registered touches' own. A touch not registered alone yet counts
+    0 without ``geometries``; with them, it is taken to fit no better than
+    ``defaults.JOINT_UNREGISTERED_FLOOR`` times its own noise level (the smaller of its
+    curves' fit RMS and its noise estimate): no rigid placement of a model fits the
+    touch's points much closer than its own smooth local fit does. A model whose
     bound is already far below the best model's joint log-likelihood cannot become
     plausible by registering its remaining touches. A touch whose (K, H) lookup found no
     candidate on the model rules it out here, as for one touch; when then no model fits
@@ -714,16 +728,37 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     touches : sequence of TouchData
     noise : float
         The pooled noise estimate (:func:`pooled_noise`), > 0.
+    geometries : sequence of LocalGeometry, optional
+        The local geometry of each touch (for the touches not registered alone).
 
     Returns
     -------
     float
         At most 0; ``-inf`` when a registered touch found no candidate.
+
+    Raises
+    ------
+    ValueError
+        If ``geometries`` is given and does not match ``touches``.
     """
+    if geometries is not None and len(geometries) != len(touches):
+        raise ValueError(
+            f"geometries must hold one LocalGeometry per touch ({len(touches)}), got "
+            f"{len(geometries)}"
+        )
     total = 0.0
-    for touch, reg in zip(touches, fit.single, strict=False):
-        if reg.rejected:
-            return float("-inf")
+    for k, touch in enumerate(touches):
         n_eff = effective_points(touch.n_points)
-        total -= 0.5 * n_eff * (reg.rms / noise) ** 2
+        if k < len(fit.single):
+            reg = fit.single[k]
+            if reg.rejected:
+                return float("-inf")
+            rms = reg.rms
+        elif geometries is not None:
+            g = geometries[k]
+            own = min(g.fit_rms, noise_estimate(g.fit_rms, g.noise_rms, g.half_length))
+            rms = defaults.JOINT_UNREGISTERED_FLOOR * own
+        else:
+            rms = 0.0
+        total -= 0.5 * n_eff * (rms / noise) ** 2
     return total

@@ -607,7 +607,7 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
             if m.name not in searched
             and not fits[m.name].registration.rejected
             and ll[names.index(m.name)] < leader - gap
-            and log_likelihood_bound(fits[m.name], touches, noise) >= leader - gap
+            and log_likelihood_bound(fits[m.name], touches, noise, geometries) >= leader - gap
         ]
         if not todo:
             return
@@ -624,7 +624,7 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
                     method=method,
                     noise=noise,
                 )
-            if log_likelihood_bound(fit, touches, noise) >= leader - gap:
+            if log_likelihood_bound(fit, touches, noise, geometries) >= leader - gap:
                 far = rms_out_of_reach(leader, n, noise)
                 fit = search_pairs(touches, model, geometries, fit, hopeless_rms=far)
             fits[model.name] = fit
