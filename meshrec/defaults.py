@@ -415,6 +415,10 @@ JOINT_REFINE_SEEDS = 3
 #: iterations, ...
 JOINT_COARSE_POINTS = 150
 JOINT_COARSE_ITER = 10
+#: With many seeds, their starting RMS is first bounded on about this many of the coarse
+#: points (a partial sum of squares), and computed on all of them only for the seeds that
+#: can still be among the best: the same seeds as computing every one (a cost knob only).
+JOINT_START_PROBE_POINTS = 16
 #: ... then on all the points those whose coarse RMS is within this factor of the best.
 #: (Seeds are refined at all only if their starting RMS is within it of the least.)
 JOINT_KEEP_RATIO = 1.5

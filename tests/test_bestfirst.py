@@ -177,3 +177,28 @@ def test_the_bound_refuses_geometries_that_do_not_match(on_torus):
     touches, geometries, noise, _models, firsts = on_torus
     with pytest.raises(ValueError, match=r"geometries must hold one LocalGeometry per touch \(3\)"):
         joint.log_likelihood_bound(firsts["torus"], touches, noise, geometries[:1])
+
+
+@pytest.mark.parametrize("best", [1, 3, 32])
+def test_the_least_start_rms_are_those_of_every_seed_evaluated(on_torus, best):
+    """Brute-force twin: the RMS of every seed on every coarse point, sorted. The bounded
+    evaluation picks the same seeds in the same order with the same values."""
+    from meshrec.recognition.joint import _least_start_rms, _rms_on
+
+    touches, _geometries, _noise, models, firsts = on_torus
+    model = next(m for m in models if m.name == "torus")
+    rng = np.random.default_rng(5)
+    base = [p.T_model_touch for p in firsts["torus"].registration.poses]
+    seeds = []
+    for _ in range(300):  # poses scattered about the first touch's, near and far
+        T = base[int(rng.integers(len(base)))].copy()
+        T[:3, :3] = Rotation.from_rotvec(rng.normal(0, 0.3, 3)).as_matrix() @ T[:3, :3]
+        T[:3, 3] += rng.normal(0, 0.1, 3)
+        seeds.append(T)
+    points = np.vstack([t.points for t in touches])
+    sub = points[:: max(1, len(points) // defaults.JOINT_COARSE_POINTS)]
+    every = _rms_on(model, sub, seeds)
+    order, rms = _least_start_rms(model, sub, seeds, best)
+    assert order.tolist() == np.argsort(every, kind="stable")[:best].tolist()
+    assert all(rms[i] == every[i] for i in order)
+    assert len(rms) < len(seeds)  # the premise: not every seed was evaluated on all

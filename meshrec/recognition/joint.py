@@ -227,16 +227,12 @@ def joint_poses(
     n = len(points)
     stride = max(1, n // defaults.JOINT_COARSE_POINTS)
     sub = points[::stride]
-    stacked = np.vstack([apply_transform(T, sub) for T in seeds])
-    start_rms = np.sqrt(
-        (residuals(model, stacked).values.reshape(len(seeds), len(sub)) ** 2).mean(1)
-    )
     # Coarse to fine: each seed refined on every k-th point (most seeds are far off and
     # take many steps), then the coarse results that come near the best one refined on
     # all the points (a few steps).
     # Only seeds that start near the best one: the others are far off (a wrong touch
     # placement) and would take many steps to reach what the best reaches in a few.
-    order = np.argsort(start_rms, kind="stable")[:best]
+    order, start_rms = _least_start_rms(model, sub, seeds, best)
     # In lockstep, one closest-point query per round for all the seeds (the same results
     # as refine_rigid from each: meshrec.registration.batch).
     starts = [seeds[k] for k in order if start_rms[k] <= start_ratio * start_rms[order[0]]]
@@ -270,6 +266,49 @@ def joint_poses(
 def _rms(pose: PoseHypothesis) -> float:
     """A pose's RMS, the sort key of pose lists."""
     return pose.rms
+
+
+def _least_start_rms(model, sub: np.ndarray, seeds: Sequence[np.ndarray], best: int):
+    """The ``best`` seeds of least RMS on ``sub`` (least first, ties by index), and the RMS
+    of each seed as a dict (only the seeds whose RMS was needed).
+
+    The same seeds, in the same order and with the same values, as the RMS of every seed
+    sorted (each point's residual is its own, whatever else is queried with it). With many
+    seeds (the harder search's every candidate contact), the sum of squares on every k-th
+    point of ``sub`` (about ``defaults.JOINT_START_PROBE_POINTS``), a lower bound of the
+    sum on all of ``sub``, ranks them first, and the exact RMS is computed only in that
+    order until the next bound is above the ``best``-th least sum found: evaluating every
+    seed on every point of ``sub`` was a third of a look-alike's three-touch recognition.
+    """
+    k, m = len(seeds), len(sub)
+    probe_stride = max(1, m // defaults.JOINT_START_PROBE_POINTS)
+    if k <= 4 * best or probe_stride == 1:
+        rms = _rms_on(model, sub, seeds)
+        return np.argsort(rms, kind="stable")[:best], dict(enumerate(rms))
+    probe = sub[::probe_stride]
+    bound = (_rms_on(model, probe, seeds) ** 2) * len(probe)  # sums of squares on probe
+    ranked = np.argsort(bound, kind="stable")
+    exact: dict[int, float] = {}
+    chunk = max(best, 16)
+    at = 0
+    while at < k:
+        ids = ranked[at : at + chunk].tolist()
+        rms = _rms_on(model, sub, [seeds[i] for i in ids])
+        exact.update(zip(ids, rms.tolist(), strict=True))
+        at += len(ids)
+        if len(exact) >= best and at < k:
+            kth = sorted(exact.values())[best - 1] ** 2 * m  # the best-th least sum
+            if kth * (1.0 + 1e-9) < bound[ranked[at]]:
+                break  # every seed left sums more than the best-th on the probe alone
+    order = sorted(exact, key=lambda i: (exact[i], i))[:best]
+    return np.array(order, dtype=np.int64), exact
+
+
+def _rms_on(model, points: np.ndarray, poses: Sequence[np.ndarray]) -> np.ndarray:
+    """(k,) RMS distance of ``points`` placed by each of the ``k`` poses, one query."""
+    stacked = np.vstack([apply_transform(T, points) for T in poses])
+    values = residuals(model, stacked).values.reshape(len(poses), len(points))
+    return np.sqrt((values**2).mean(1))
 
 
 def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float) -> list:
