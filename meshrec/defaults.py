@@ -443,6 +443,10 @@ JOINT_REFINE_SEEDS = 3
 #: iterations, ...
 JOINT_COARSE_POINTS = 150
 JOINT_COARSE_ITER = 10
+#: With many seeds, their starting RMS is first bounded on about this many of the coarse
+#: points (a partial sum of squares), and computed on all of them only for the seeds that
+#: can still be among the best: the same seeds as computing every one (a cost knob only).
+JOINT_START_PROBE_POINTS = 16
 #: ... then on all the points those whose coarse RMS is within this factor of the best.
 #: (Seeds are refined at all only if their starting RMS is within it of the least.)
 JOINT_KEEP_RATIO = 1.5
@@ -462,11 +466,26 @@ JOINT_SAME_POSE_FRACTION = 0.02
 #: in the recognition, 0.015 after about 20 more, where a refinement from the true pose
 #: ends; tests/test_joint.py).
 JOINT_POLISH_ITER = 100
+#: The most the fine stage (all the points) was taken to lower the coarse stage's best
+#: joint RMS. A model whose coarse poses, scored on all the points, stay above this factor
+#: times the RMS at which it can no longer compete with the best joint fit so far
+#: (JOINT_PRUNE_LOG_RATIO) keeps them unrefined: an upper bound of what refining gives,
+#: and far below the leader either way. Measured on the 226 joint refinements of
+#: tools/touches.py --sets 5 6: coarse over fine RMS at most 2.61 (median 1.001), at most
+#: 1.73 where the coarse RMS was above 3 x the noise; 3 is a margin over both.
+JOINT_FINE_GAIN = 3.0
 #: A model whose fit to the touches registered so far already makes it less probable than
 #: this, relative to the best joint fit of any model, is not registered on its remaining
-#: touches: every further touch can only lower its likelihood (the explicit, order-free
-#: pruning step after the per-model work; e^-14 ~ 1e-6, far below any plausible set).
+#: touches: every further touch can only lower its likelihood (the models' steps run best
+#: bound first, meshrec.recognition.bestfirst; e^-14 ~ 1e-6, far below any plausible set).
 JOINT_PRUNE_LOG_RATIO = -14.0
+#: A touch not yet registered alone on a model is taken, in the model's best conceivable
+#: fit, to fit no closer than this times its own noise level (the smaller of its curves'
+#: fit RMS and its noise estimate; 0 would take it as fitting perfectly). Measured on the
+#: 244 single-touch registrations of tools/touches.py --sets 5 6 (every model, noise
+#: +-0.002): the touch's RMS alone over that level was at least 0.924 (median 1.33);
+#: 0.75 leaves a margin of 1.5 in the squared residuals.
+JOINT_UNREGISTERED_FLOOR = 0.75
 
 #: The recognition's cascade (meshrec.recognition.cascade): with one touch, every model's
 #: first stages (lookup, phi, screening) run first, and the local searches only on the

@@ -28,7 +28,12 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
-from meshrec.recognition.scoring import effective_points, fit_p_value
+from meshrec.recognition.scoring import (
+    effective_points,
+    fit_p_value,
+    log_likelihoods,
+    noise_estimate,
+)
 from meshrec.recognition.weak import weak_motion_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import residuals
@@ -47,6 +52,7 @@ __all__ = [
     "log_likelihood_bound",
     "pooled_noise",
     "register_touches",
+    "rms_out_of_reach",
     "search_pairs",
     "touch_rms",
 ]
@@ -169,6 +175,7 @@ def joint_poses(
     *,
     best: int = defaults.JOINT_REFINE_SEEDS,
     start_ratio: float = defaults.JOINT_KEEP_RATIO,
+    hopeless_rms: float = np.inf,
 ) -> tuple[PoseHypothesis, ...]:
     """Refine poses of the object jointly on every touch's points; the distinct results.
 
@@ -205,28 +212,27 @@ def joint_poses(
     Raises
     ------
     ValueError
-        If ``best`` is not a positive integer or ``start_ratio`` is not at least 1.
+        If ``best`` is not a positive integer, ``start_ratio`` is not at least 1 or
+        ``hopeless_rms`` is not positive.
     """
     if not isinstance(best, (int, np.integer)) or isinstance(best, bool) or best < 1:
         raise ValueError(f"best must be a positive integer, got {best!r}")
     if not start_ratio >= 1:
         raise ValueError(f"start_ratio must be at least 1, got {start_ratio!r}")
+    if not hopeless_rms > 0:
+        raise ValueError(f"hopeless_rms must be positive, got {hopeless_rms!r}")
     if len(seeds) == 0:
         return ()
     points = np.vstack([t.points for t in touches])
     n = len(points)
     stride = max(1, n // defaults.JOINT_COARSE_POINTS)
     sub = points[::stride]
-    stacked = np.vstack([apply_transform(T, sub) for T in seeds])
-    start_rms = np.sqrt(
-        (residuals(model, stacked).values.reshape(len(seeds), len(sub)) ** 2).mean(1)
-    )
     # Coarse to fine: each seed refined on every k-th point (most seeds are far off and
     # take many steps), then the coarse results that come near the best one refined on
     # all the points (a few steps).
     # Only seeds that start near the best one: the others are far off (a wrong touch
     # placement) and would take many steps to reach what the best reaches in a few.
-    order = np.argsort(start_rms, kind="stable")[:best]
+    order, start_rms = _least_start_rms(model, sub, seeds, best)
     # In lockstep, one closest-point query per round for all the seeds (the same results
     # as refine_rigid from each: meshrec.registration.batch).
     starts = [seeds[k] for k in order if start_rms[k] <= start_ratio * start_rms[order[0]]]
@@ -235,6 +241,11 @@ def joint_poses(
     least = min(c.rms for c in coarse)
     kept = [c.T_model_touch for c in coarse if c.rms <= defaults.JOINT_KEEP_RATIO * least]
     kept = _merged(kept, sub, tol)
+    if np.isfinite(hopeless_rms):
+        scored = refine_rigid_batch(model, points, np.array(kept), max_iter=0)
+        if min(r.rms for r in scored) > defaults.JOINT_FINE_GAIN * hopeless_rms:
+            out = sorted((refined_pose(model, r, geometry.point) for r in scored), key=_rms)
+            return distinct_poses(out, float(geometry.half_length))
     refs = refine_rigid_batch(model, points, np.array(kept))
     # Along a nearly free motion (a turn of a bumped sphere about its centre) the
     # point-to-plane steps crawl, a few per cent of the way per iteration, and the
@@ -248,9 +259,56 @@ def joint_poses(
             model, points, refs[k].T_model_touch[None], max_iter=defaults.JOINT_POLISH_ITER
         )[0]
         refs[k] = dataclasses.replace(more, iterations=refs[k].iterations + more.iterations)
-    out = [refined_pose(model, ref, geometry.point) for ref in refs]
-    out.sort(key=lambda p: p.rms)
+    out = sorted((refined_pose(model, ref, geometry.point) for ref in refs), key=_rms)
     return distinct_poses(out, float(geometry.half_length))
+
+
+def _rms(pose: PoseHypothesis) -> float:
+    """A pose's RMS, the sort key of pose lists."""
+    return pose.rms
+
+
+def _least_start_rms(model, sub: np.ndarray, seeds: Sequence[np.ndarray], best: int):
+    """The ``best`` seeds of least RMS on ``sub`` (least first, ties by index), and the RMS
+    of each seed as a dict (only the seeds whose RMS was needed).
+
+    The same seeds, in the same order and with the same values, as the RMS of every seed
+    sorted (each point's residual is its own, whatever else is queried with it). With many
+    seeds (the harder search's every candidate contact), the sum of squares on every k-th
+    point of ``sub`` (about ``defaults.JOINT_START_PROBE_POINTS``), a lower bound of the
+    sum on all of ``sub``, ranks them first, and the exact RMS is computed only in that
+    order until the next bound is above the ``best``-th least sum found: evaluating every
+    seed on every point of ``sub`` was a third of a look-alike's three-touch recognition.
+    """
+    k, m = len(seeds), len(sub)
+    probe_stride = max(1, m // defaults.JOINT_START_PROBE_POINTS)
+    if k <= 4 * best or probe_stride == 1:
+        rms = _rms_on(model, sub, seeds)
+        return np.argsort(rms, kind="stable")[:best], dict(enumerate(rms))
+    probe = sub[::probe_stride]
+    bound = (_rms_on(model, probe, seeds) ** 2) * len(probe)  # sums of squares on probe
+    ranked = np.argsort(bound, kind="stable")
+    exact: dict[int, float] = {}
+    chunk = max(best, 16)
+    at = 0
+    while at < k:
+        ids = ranked[at : at + chunk].tolist()
+        rms = _rms_on(model, sub, [seeds[i] for i in ids])
+        exact.update(zip(ids, rms.tolist(), strict=True))
+        at += len(ids)
+        if len(exact) >= best and at < k:
+            kth = sorted(exact.values())[best - 1] ** 2 * m  # the best-th least sum
+            if kth * (1.0 + 1e-9) < bound[ranked[at]]:
+                break  # every seed left sums more than the best-th on the probe alone
+    order = sorted(exact, key=lambda i: (exact[i], i))[:best]
+    return np.array(order, dtype=np.int64), exact
+
+
+def _rms_on(model, points: np.ndarray, poses: Sequence[np.ndarray]) -> np.ndarray:
+    """(k,) RMS distance of ``points`` placed by each of the ``k`` poses, one query."""
+    stacked = np.vstack([apply_transform(T, points) for T in poses])
+    values = residuals(model, stacked).values.reshape(len(poses), len(points))
+    return np.sqrt((values**2).mean(1))
 
 
 def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float) -> list:
@@ -305,6 +363,7 @@ def register_touches(
     method: str = defaults.SEARCH_METHOD,
     lookup_scale: float = 1.0,
     noise: float | None = None,
+    hopeless_rms: float = np.inf,
 ) -> JointFit:
     """Register several touches of one object on one model at one rigid pose.
 
@@ -336,6 +395,9 @@ def register_touches(
         touch at its best bracketed angles (:func:`candidate_seeds`) seeds the joint
         refinement too (the touches' distinct poses may all be slid along a nearly
         flat or symmetric patch, off the one pose that fits them all).
+    hopeless_rms : float
+        A joint RMS above which this model cannot compete with the best fit so far
+        (:func:`joint_poses`; ``inf``: none).
 
     Returns
     -------
@@ -344,8 +406,8 @@ def register_touches(
     Raises
     ------
     ValueError
-        If ``upto`` is outside 1 to ``len(touches)`` or ``geometries`` does not match
-        ``touches``.
+        If ``upto`` is outside 1 to ``len(touches)``, ``geometries`` does not match
+        ``touches`` or ``hopeless_rms`` is not positive (:func:`joint_poses`).
     """
     if len(geometries) != len(touches):
         raise ValueError(
@@ -377,7 +439,7 @@ def register_touches(
     seeds = [p.T_model_touch for p in previous.registration.poses] if previous else []
     seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
     t1 = time.perf_counter()
-    poses = joint_poses(model, touches, seeds, geometries[0])
+    poses = joint_poses(model, touches, seeds, geometries[0], hopeless_rms=hopeless_rms)
     n = int(sum(t.n_points for t in touches))
     if (
         noise is not None
@@ -385,7 +447,11 @@ def register_touches(
         and (not poses or fit_p_value(poses[0].rms, n, noise) < defaults.WIDEN_P_VALUE)
     ):
         more = [T for reg in single for T in candidate_seeds(reg)]
-        found = joint_poses(model, touches, more, geometries[0]) if more else ()
+        found = (
+            joint_poses(model, touches, more, geometries[0], hopeless_rms=hopeless_rms)
+            if more
+            else ()
+        )
         poses = distinct_poses(
             sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
         )
@@ -399,6 +465,7 @@ def search_pairs(
     previous: JointFit,
     *,
     lookup_scale: float = 1.0,
+    hopeless_rms: float = np.inf,
 ) -> JointFit:
     """Search a model's joint pose again from pairs of touches (:func:`pair_seeds`).
 
@@ -421,6 +488,9 @@ def search_pairs(
         registrations are kept.
     lookup_scale : float
         Factor widening the (K, H) lookup window.
+    hopeless_rms : float
+        A joint RMS above which the model cannot compete (:func:`joint_poses`; ``inf``:
+        none).
 
     Returns
     -------
@@ -430,12 +500,18 @@ def search_pairs(
     Raises
     ------
     ValueError
-        As :func:`pair_seeds`.
+        As :func:`pair_seeds` and :func:`joint_poses`.
     """
     t0 = time.perf_counter()
     seeds = pair_seeds(touches, model, geometries, lookup_scale=lookup_scale)
     found = joint_poses(
-        model, touches, seeds, geometries[0], best=defaults.PAIR_REFINE_SEEDS, start_ratio=np.inf
+        model,
+        touches,
+        seeds,
+        geometries[0],
+        best=defaults.PAIR_REFINE_SEEDS,
+        start_ratio=np.inf,
+        hopeless_rms=hopeless_rms,
     )
     return _with_poses(model, touches, geometries, previous, found, t0)
 
@@ -632,12 +708,54 @@ def _fit(model, touches, single, poses, t_joint: float, t0: float) -> JointFit:
     )
 
 
-def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: float) -> float:
+def rms_out_of_reach(leader: float, n_points: int, noise: float) -> float:
+    """The joint RMS at which a model is ``defaults.JOINT_PRUNE_LOG_RATIO`` below a leader.
+
+    Parameters
+    ----------
+    leader : float
+        The best joint log-likelihood so far (see
+        :func:`~meshrec.recognition.scoring.log_likelihoods`); ``-inf`` while none.
+    n_points : int
+        The touches' points, >= 1.
+    noise : float
+        The pooled noise (:func:`pooled_noise`), > 0.
+
+    Returns
+    -------
+    float
+        The RMS whose log-likelihood is ``leader + defaults.JOINT_PRUNE_LOG_RATIO``
+        (``inf`` without a leader): a fit worse than that cannot compete.
+
+    Raises
+    ------
+    ValueError
+        If ``leader`` is NaN or positive, or as
+        :func:`~meshrec.recognition.scoring.log_likelihoods`.
+    """
+    if not leader <= 0:
+        raise ValueError(f"leader must be a log-likelihood (<= 0), got {leader!r}")
+    if leader == -np.inf:
+        return float(np.inf)
+    unit = -float(log_likelihoods([1.0], n_points, noise)[0])  # -ll of an RMS of 1
+    return float(np.sqrt(-(leader + defaults.JOINT_PRUNE_LOG_RATIO) / unit))
+
+
+def log_likelihood_bound(
+    fit: JointFit,
+    touches: Sequence[TouchData],
+    noise: float,
+    geometries: Sequence[LocalGeometry] | None = None,
+) -> float:
     """The most log-likelihood a model could still reach on all the touches.
 
     The joint fit's squared residuals add up over the touches, and no pose fits a touch
     better than that touch's own best registration, so the joint log-likelihood is at
-    most the sum of the registered touches' own (the others' at most 0). A model whose
+    most the sum of the registered touches' own. A touch not registered alone yet counts
+    0 without ``geometries``; with them, it is taken to fit no better than
+    ``defaults.JOINT_UNREGISTERED_FLOOR`` times its own noise level (the smaller of its
+    curves' fit RMS and its noise estimate): no rigid placement of a model fits the
+    touch's points much closer than its own smooth local fit does. A model whose
     bound is already far below the best model's joint log-likelihood cannot become
     plausible by registering its remaining touches. A touch whose (K, H) lookup found no
     candidate on the model rules it out here, as for one touch; when then no model fits
@@ -649,16 +767,37 @@ def log_likelihood_bound(fit: JointFit, touches: Sequence[TouchData], noise: flo
     touches : sequence of TouchData
     noise : float
         The pooled noise estimate (:func:`pooled_noise`), > 0.
+    geometries : sequence of LocalGeometry, optional
+        The local geometry of each touch (for the touches not registered alone).
 
     Returns
     -------
     float
         At most 0; ``-inf`` when a registered touch found no candidate.
+
+    Raises
+    ------
+    ValueError
+        If ``geometries`` is given and does not match ``touches``.
     """
+    if geometries is not None and len(geometries) != len(touches):
+        raise ValueError(
+            f"geometries must hold one LocalGeometry per touch ({len(touches)}), got "
+            f"{len(geometries)}"
+        )
     total = 0.0
-    for touch, reg in zip(touches, fit.single, strict=False):
-        if reg.rejected:
-            return float("-inf")
+    for k, touch in enumerate(touches):
         n_eff = effective_points(touch.n_points)
-        total -= 0.5 * n_eff * (reg.rms / noise) ** 2
+        if k < len(fit.single):
+            reg = fit.single[k]
+            if reg.rejected:
+                return float("-inf")
+            rms = reg.rms
+        elif geometries is not None:
+            g = geometries[k]
+            own = min(g.fit_rms, noise_estimate(g.fit_rms, g.noise_rms, g.half_length))
+            rms = defaults.JOINT_UNREGISTERED_FLOOR * own
+        else:
+            rms = 0.0
+        total -= 0.5 * n_eff * (rms / noise) ** 2
     return total

@@ -17,6 +17,7 @@ from meshrec.io.touch import TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
+from meshrec.recognition.bestfirst import fit_best_first
 from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.edges import warn_sharp_edges
 from meshrec.recognition.flatness import flat_prior
@@ -28,6 +29,7 @@ from meshrec.recognition.joint import (
     log_likelihood_bound,
     pooled_noise,
     register_touches,
+    rms_out_of_reach,
     search_pairs,
 )
 from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
@@ -534,14 +536,12 @@ def _ranked(rec: Recognition, results) -> Recognition:
 def _rank_joint(touches, models, method, progress, geometries, run, cascade=False):
     """Several touches: every model fitted at one pose to all, the needed touches alone.
 
-    Per model (independently of the others) the first touch is registered alone; its
-    poses are refined on every touch, most promising model first, except for the models
-    whose first touch alone already fits far worse than the best joint fit so far. Then,
-    touch by touch, an explicit order-free step over
-    all the models' fits so far: a model whose joint fit is worse than the noise allows
-    registers its next touch alone too, unless even its best conceivable fit
-    (:func:`~meshrec.recognition.joint.log_likelihood_bound`) is already far below the
-    best joint fit of any model (``defaults.JOINT_PRUNE_LOG_RATIO``).
+    Per model (independently of the others) the first touch is registered alone. Then,
+    most promising model first (:func:`~meshrec.recognition.bestfirst.fit_best_first`),
+    its poses are refined on every touch and, while the joint fit is worse than the noise
+    allows, the next touch is registered alone too, unless even the model's best
+    conceivable fit (:func:`~meshrec.recognition.joint.log_likelihood_bound`) is already
+    far below the best joint fit so far (``defaults.JOINT_PRUNE_LOG_RATIO``).
     """
     t0 = time.perf_counter()
     if not models:
@@ -575,39 +575,10 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
         model.name: first_touch_fit(touches, model, first)
         for model, first in zip(models, regs, strict=True)
     }
-    # The joint refinement, most promising model first (by the first touch's fit, then the
-    # name: an order of the data, not of the library). A model whose first touch alone
-    # already fits far worse than the best joint fit so far keeps its first touch's poses
-    # unrefined: refining cannot make it plausible.
-    order = sorted(
-        models, key=lambda m: (-log_likelihood_bound(firsts[m.name], touches, noise), m.name)
-    )
-    fits = {}
-    leader = -np.inf
-    for model in order:
-        fit = firsts[model.name]
-        bound = log_likelihood_bound(fit, touches, noise)
-        if not fit.registration.rejected and bound >= leader + defaults.JOINT_PRUNE_LOG_RATIO:
-            fit = register_touches(touches, model, geometries, upto=1, previous=fit, method=method)
-            leader = max(leader, float(log_likelihoods([fit.registration.rms], n, noise)[0]))
-        fits[model.name] = fit
-    # Touch by touch, over every model's fits so far (an order-free step): a model whose
-    # joint fit is worse than the noise allows registers its next touch alone too, unless
-    # even its best conceivable fit is already far below the best model's.
-    for upto in range(2, len(touches) + 1):
-        rms = [f.registration.rms for f in fits.values()]
-        leader = float(np.max(log_likelihoods(rms, n, noise)))
-        for model in models:
-            fit = fits[model.name]
-            r = fit.registration
-            if not r.rejected and fit_p_value(r.rms, n, noise) >= defaults.WIDEN_P_VALUE:
-                continue  # fits every touch to the noise already
-            bound = log_likelihood_bound(fit, touches, noise)
-            if bound < leader + defaults.JOINT_PRUNE_LOG_RATIO:
-                continue  # cannot become plausible, whatever its other touches give
-            fits[model.name] = register_touches(
-                touches, model, geometries, upto=upto, previous=fit, method=method, noise=noise
-            )
+    # Most promising model first, each model a step (one more touch) at a time, until
+    # it fits every touch to the noise or cannot become plausible (branch and bound:
+    # meshrec.recognition.bestfirst).
+    fits = fit_best_first(touches, models, geometries, firsts, noise, method)
     _search_adequately(touches, models, geometries, fits, noise, n, method)
     _explore_near_symmetries(touches, models, geometries, fits, noise, n)
     rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
@@ -639,7 +610,7 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
             if m.name not in searched
             and not fits[m.name].registration.rejected
             and ll[names.index(m.name)] < leader - gap
-            and log_likelihood_bound(fits[m.name], touches, noise) >= leader - gap
+            and log_likelihood_bound(fits[m.name], touches, noise, geometries) >= leader - gap
         ]
         if not todo:
             return
@@ -656,8 +627,9 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
                     method=method,
                     noise=noise,
                 )
-            if log_likelihood_bound(fit, touches, noise) >= leader - gap:
-                fit = search_pairs(touches, model, geometries, fit)
+            if log_likelihood_bound(fit, touches, noise, geometries) >= leader - gap:
+                far = rms_out_of_reach(leader, n, noise)
+                fit = search_pairs(touches, model, geometries, fit, hopeless_rms=far)
             fits[model.name] = fit
 
 
