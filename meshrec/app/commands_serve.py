@@ -24,7 +24,6 @@ library alone (see :mod:`meshrec.app.cli`).
 from __future__ import annotations
 
 import json
-import signal
 import sys
 import threading
 import warnings
@@ -455,45 +454,9 @@ def run_serve(args, err=None) -> int:
         "(Ctrl-C stops)\n"
     )
     err.flush()
-    interrupted = _InterruptFlag()
     try:
-        with interrupted:
-            server.run(sockets=[sock])
+        server.run(sockets=[sock])
     finally:
         sock.close()
         workers.close()
-    if interrupted.signals:
-        # uvicorn answered the signal by shutting down and raised it again on its way
-        # out, where asyncio's own handler may only cancel a task that was ending anyway
-        raise KeyboardInterrupt
     return 0
-
-
-class _InterruptFlag:
-    """Within it, SIGINT raises KeyboardInterrupt and is remembered.
-
-    A handler of our own keeps asyncio's runner from installing its one, which turns the
-    signal uvicorn raises again after its graceful shutdown into a cancellation of the
-    main task; when that task was about to end the signal was lost and the service
-    exited with status 0 instead of 130 (seen once in the test suite on a loaded
-    machine).
-    """
-
-    def __init__(self) -> None:
-        self.signals: list[int] = []
-        self._previous = None
-
-    def _handle(self, signum, frame) -> None:
-        self.signals.append(signum)
-        raise KeyboardInterrupt
-
-    def __enter__(self) -> _InterruptFlag:
-        import threading
-
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
