@@ -32,6 +32,13 @@ def _numpy_loaded(pid: int) -> bool:
         return False
 
 
+def _default_sigint() -> None:
+    """In the child before it runs: Ctrl-C's default action, also when this test runs in
+    a background job (whose shell ignores SIGINT, and a child inherits that: the run then
+    ignored the signal and ended with status 0, as it should)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _entries(cache: Path) -> int:
     """Finished model entries in the cache (written through a rename: whole files only)."""
     return len(list(cache.glob("*.npz"))) if cache.exists() else 0
@@ -46,6 +53,7 @@ def _interrupt(cache: Path, after: float, entries: int = 0) -> subprocess.Comple
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
+        preexec_fn=_default_sigint,
     )
     deadline = time.monotonic() + 60
     while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
@@ -94,6 +102,27 @@ def test_ctrl_c_exits_130_quietly(tmp_path, entries, after):
     )
     assert again.returncode == 0, again.stderr
     assert len(again.stdout.strip().splitlines()) == 4
+
+
+def test_an_ignored_ctrl_c_stays_ignored(tmp_path):
+    # started with SIGINT ignored (as a shell starts a background job), a Ctrl-C during
+    # start-up (the heavy imports, where meshrec otherwise exits at once) changes nothing
+    cache = tmp_path / "cache"
+    proc = subprocess.Popen(
+        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
+    deadline = time.monotonic() + 60
+    while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.0002)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert len(out.strip().splitlines()) == 4
 
 
 def test_start_up_imports_nothing_heavy():

@@ -38,6 +38,12 @@ def _env(cache) -> dict:
     return env
 
 
+def _default_sigint() -> None:
+    """In the child: Ctrl-C's default action, also when the tests run in a background job
+    (which ignores SIGINT; the service then rightly ignored it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(folder, cache) -> tuple[subprocess.Popen, str]:
     """Start ``meshrec serve`` on 127.0.0.1 with a free port (port 0, the server prints
     the one it got); wait for its start-up line and for /health, within bounds."""
@@ -47,6 +53,7 @@ def _start(folder, cache) -> tuple[subprocess.Popen, str]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_default_sigint,
     )
     deadline = time.monotonic() + START_TIMEOUT
     line = ""

@@ -479,6 +479,8 @@ def _load_core() -> None:
 
     if threading.current_thread() is not threading.main_thread():
         previous = None
+    elif signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        previous = None  # started ignoring Ctrl-C (a background job): keep ignoring it
     else:
         previous = signal.signal(signal.SIGINT, _exit_on_sigint)
     try:
