@@ -352,3 +352,26 @@ def test_cli_bad_arguments(world, capsys, extra, match):
 def test_cli_stdin_twice(world, capsys):
     assert main(["next-touch", "-", "-", "--models", str(world["folder"])]) == 2
     assert "only once" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_surface_sampler_is_trimesh_s(seed):
+    # the advice's own sampler (no trimesh import for next-touch) draws exactly what
+    # trimesh.sample.sample_surface draws with the same generator and weights
+    from meshrec.recognition.advice import _sample_surface
+
+    mesh = trimesh.creation.icosphere(3)
+    mesh.vertices[:, 0] *= 1.7  # faces of unequal area
+    weight = np.asarray(mesh.area_faces) * 2.0
+    ours = _sample_surface(
+        np.asarray(mesh.vertices),
+        np.asarray(mesh.faces),
+        weight,
+        500,
+        np.random.default_rng(seed),
+    )
+    theirs = trimesh.sample.sample_surface(
+        mesh, 500, face_weight=weight, seed=np.random.default_rng(seed)
+    )
+    np.testing.assert_array_equal(ours[0], theirs[0])
+    np.testing.assert_array_equal(ours[1], theirs[1])

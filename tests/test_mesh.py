@@ -143,7 +143,7 @@ def test_error_only_degenerate_faces(tmp_path):
 def test_error_not_a_trimesh(tmp_path, monkeypatch):
     path = tmp_path / "thing.obj"
     path.write_text("v 0 0 0\n")
-    monkeypatch.setattr(mesh_mod.trimesh, "load", lambda *a, **k: trimesh.PointCloud(np.eye(3)))
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: trimesh.PointCloud(np.eye(3)))
     with pytest.raises(ValueError, match=r"thing\.obj.*no triangle mesh \(got PointCloud\)"):
         load_mesh(path)
 
@@ -155,7 +155,7 @@ def test_error_non_finite_vertices(tmp_path, monkeypatch):
     bad = trimesh.Trimesh(
         vertices=[[0, 0, 0], [1, 0, 0], [0, np.nan, 0]], faces=[[0, 1, 2]], process=False
     )
-    monkeypatch.setattr(mesh_mod.trimesh, "load", lambda *a, **k: bad)
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: bad)
     with pytest.raises(ValueError, match=r"nan\.obj.*non-finite"):
         load_mesh(path)
 

@@ -38,7 +38,7 @@ def test_a_file_changed_during_indexing_is_cached_under_its_own_content(tmp_path
     small = trimesh.creation.icosphere(subdivisions=2)  # 162 vertices
     large = trimesh.creation.icosphere(subdivisions=3)  # 642 vertices
     small.export(path)
-    real_load = mesh_mod.trimesh.load
+    real_load = trimesh.load
     swapped = []
 
     def load_after_the_file_changed(*args, **kwargs):
@@ -49,7 +49,7 @@ def test_a_file_changed_during_indexing_is_cached_under_its_own_content(tmp_path
             swapped.append(True)
         return real_load(*args, **kwargs)
 
-    monkeypatch.setattr(mesh_mod.trimesh, "load", load_after_the_file_changed)
+    monkeypatch.setattr(trimesh, "load", load_after_the_file_changed)
     cache = tmp_path / "cache"
     first = ModelIndex.from_file(path, cache_dir=cache)
     monkeypatch.undo()

@@ -466,8 +466,12 @@ def _exit_on_sigint(signum, frame):  # pragma: no cover - runs in the killed pro
     os._exit(130)
 
 
-def _load_core() -> None:
-    """Import numpy, scipy, trimesh and libigl with Ctrl-C ending the process at once.
+def _load_core(command: str | None = None) -> None:
+    """Import numpy, scipy and libigl (and trimesh for the commands that read or cut
+    meshes: ``simulate``, ``index``, ``show``, ``plot``) with Ctrl-C ending the process at
+    once. A warm ``recognize``, ``next-touch`` or ``serve`` never needs trimesh; where a
+    cold cache does, :func:`meshrec._lazy.trimesh_module` imports it, holding a Ctrl-C
+    until the import is done.
 
     A KeyboardInterrupt cannot be relied on here: trimesh imports its optional
     dependencies under ``except BaseException`` and swallows it (measured: SIGINT 0.3 s
@@ -486,7 +490,11 @@ def _load_core() -> None:
     try:
         import meshrec.model.library
         import meshrec.recognition.recognize
-        import meshrec.sim.simulate  # noqa: F401
+
+        if command in ("simulate", "index", "show", "plot"):
+            import trimesh  # noqa: F401
+
+            import meshrec.sim.simulate  # noqa: F401
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -505,7 +513,7 @@ def _main(argv: list[str] | None) -> int:
             args.models = args.folder
     except SystemExit as exc:
         return int(exc.code or 0)
-    _load_core()
+    _load_core(args.command)
     previous = warnings.showwarning
     warnings.showwarning = _one_line_warning
     try:

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import igl
 import numpy as np
-import trimesh
 from scipy import sparse
 from scipy.sparse import csgraph
 
 from meshrec import defaults
+from meshrec._lazy import trimesh_module
 from meshrec.model._arrays import readonly
 
 __all__ = [
@@ -137,7 +137,7 @@ class MeshData:
             vertices=V,
             faces=F,
             vertex_normals=_vertex_normals(V, F),
-            closed=bool(trimesh.Trimesh(V, F, process=False).is_watertight),
+            closed=bool(trimesh_module().Trimesh(V, F, process=False).is_watertight),
             scale=math.sqrt(_surface_area(V, F)),
             avg_edge=float(igl.avg_edge_length(V, F)),
         )
@@ -343,6 +343,7 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
     # From memory, without a resolver: trimesh then opens no other file; skip_materials
     # also keeps the OBJ reader from parsing material libraries at all.
     extra = {"skip_materials": True} if suffix == ".obj" else {}
+    trimesh = trimesh_module()
     try:
         loaded = trimesh.load(
             io.BytesIO(data), file_type=suffix[1:], process=False, **extra

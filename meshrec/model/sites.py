@@ -22,18 +22,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import igl
 import numpy as np
-import trimesh
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from meshrec import defaults
+from meshrec._lazy import trimesh_module
 from meshrec.model.mesh import MeshData
 from meshrec.model.surface import corner_normals
 from meshrec.model.thinning import poisson_disk_thin
+
+if TYPE_CHECKING:  # for the annotations only: trimesh is imported on first use
+    import trimesh
 
 __all__ = ["SiteSample", "sample_sites"]
 
@@ -128,6 +132,7 @@ def sample_sites(
     unit = mesh.scale
     V, F = mesh.vertices / unit, mesh.faces
     spacing, radius, range_radius = spacing / unit, radius / unit, range_radius / unit
+    trimesh = trimesh_module()
     tm = trimesh.Trimesh(V, F, process=False, validate=False)
     face_patch, sharp = _patches(tm, crease_angle_deg)
 
