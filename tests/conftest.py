@@ -1,4 +1,5 @@
-"""Fixtures shared by the picture tests (test_viz.py, test_plots.py)."""
+"""Fixtures shared by several tests: the picture tests (test_viz.py, test_plots.py) and the
+several-touch tests (test_joint.py, test_bestfirst.py)."""
 
 import dataclasses
 import types
@@ -60,3 +61,18 @@ def touched_ellipsoid(tmp_path_factory):
         files=files,
         seed=TOUCH_SEED,
     )
+
+
+@pytest.fixture(scope="session")
+def ellipsoid_capsule_torus(tmp_path_factory):
+    """A small ellipsoid (axes 1, 0.8, 0.5), a capsule and a torus, about 5k faces each,
+    indexed once for the several-touch tests."""
+    folder = tmp_path_factory.mktemp("models")
+    ellipsoid = trimesh.creation.icosphere(subdivisions=4)
+    ellipsoid.apply_scale([1.0, 0.8, 0.5])
+    ellipsoid.export(folder / "ellipsoid.stl")
+    trimesh.creation.capsule(height=1.0, radius=0.5, count=[48, 48]).export(folder / "capsule.stl")
+    trimesh.creation.torus(0.8, 0.3, major_sections=96, minor_sections=48).export(
+        folder / "torus.stl"
+    )
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path_factory.mktemp("cache"))

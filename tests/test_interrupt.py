@@ -39,6 +39,25 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def _start_index(cache: Path, preexec) -> subprocess.Popen:
+    """``meshrec index --force`` of the bundled surfaces into ``cache``; ``preexec`` runs in
+    the child before it starts (its SIGINT disposition)."""
+    return subprocess.Popen(
+        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
+        preexec_fn=preexec,
+    )
+
+
+def _wait_for_numpy(proc: subprocess.Popen, deadline: float) -> None:
+    """Wait until the child is importing numpy (or has ended, or the deadline passed)."""
+    while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.0002)
+
+
 def _entries(cache: Path) -> int:
     """Finished model entries in the cache (written through a rename: whole files only)."""
     return len(list(cache.glob("*.npz"))) if cache.exists() else 0
@@ -47,17 +66,9 @@ def _entries(cache: Path) -> int:
 def _interrupt(cache: Path, after: float, entries: int = 0) -> subprocess.CompletedProcess:
     """Start ``meshrec index --force``, wait until numpy is loading (and, with ``entries``,
     until that many models are indexed), then ``after`` more seconds, and send SIGINT."""
-    proc = subprocess.Popen(
-        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
-        preexec_fn=_default_sigint,
-    )
+    proc = _start_index(cache, _default_sigint)
     deadline = time.monotonic() + 60
-    while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.0002)
+    _wait_for_numpy(proc, deadline)
     while _entries(cache) < entries and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.0002)
     time.sleep(after)
@@ -108,17 +119,8 @@ def test_an_ignored_ctrl_c_stays_ignored(tmp_path):
     # started with SIGINT ignored (as a shell starts a background job), a Ctrl-C during
     # start-up (the heavy imports, where meshrec otherwise exits at once) changes nothing
     cache = tmp_path / "cache"
-    proc = subprocess.Popen(
-        [str(SCRIPT), "index", "--models", str(MODELS), "--cache-dir", str(cache), "--force"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "MESHREC_CACHE_DIR": str(cache)},
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
-    )
-    deadline = time.monotonic() + 60
-    while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.0002)
+    proc = _start_index(cache, lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    _wait_for_numpy(proc, time.monotonic() + 60)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err

@@ -7,7 +7,6 @@ import warnings
 
 import numpy as np
 import pytest
-import trimesh
 from scipy.spatial.transform import Rotation
 
 import meshrec
@@ -20,17 +19,9 @@ HALF_TURNS = [np.eye(3)] + [Rotation.from_rotvec(np.pi * e).as_matrix() for e in
 
 
 @pytest.fixture(scope="module")
-def library(tmp_path_factory):
-    """A small ellipsoid (axes 1, 0.8, 0.5), a capsule and a torus, about 5k faces each."""
-    folder = tmp_path_factory.mktemp("models")
-    ellipsoid = trimesh.creation.icosphere(subdivisions=4)
-    ellipsoid.apply_scale([1.0, 0.8, 0.5])
-    ellipsoid.export(folder / "ellipsoid.stl")
-    trimesh.creation.capsule(height=1.0, radius=0.5, count=[48, 48]).export(folder / "capsule.stl")
-    trimesh.creation.torus(0.8, 0.3, major_sections=96, minor_sections=48).export(
-        folder / "torus.stl"
-    )
-    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path_factory.mktemp("cache"))
+def library(ellipsoid_capsule_torus):
+    """The shared ellipsoid, capsule and torus library (``conftest.py``)."""
+    return ellipsoid_capsule_torus
 
 
 def _world(rng) -> np.ndarray:

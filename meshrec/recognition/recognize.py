@@ -764,9 +764,14 @@ def _with_verdict(
     t0 = time.perf_counter()
     prior = None
     if len(rec.touches) == 1:
-        weights = flat_prior(rec.touch, rec.geometry, models)
+        # the shares of the registered models only (a KD-tree each): a model the lookup
+        # rejected has no flat site within the tolerance, its share 0, its weight the floor
+        fitted = [by_name[r.model] for r in rec.ranking if not r.rejected]
+        weights = flat_prior(rec.touch, rec.geometry, fitted) if fitted else None
         if weights is not None:
-            prior = {m.name: float(w) for m, w in zip(models, weights, strict=True)}
+            floor = float(weights.max()) / defaults.FLAT_PRIOR_MAX_RATIO
+            prior = {m.name: floor for m in models}
+            prior.update({m.name: float(w) for m, w in zip(fitted, weights, strict=True)})
     scores, noise = _score(rec, prior)
     rec = _ordered(rec, scores)
     t_score = time.perf_counter() - t0
