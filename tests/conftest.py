@@ -1,14 +1,18 @@
-"""Fixtures shared by several tests: the picture tests (test_viz.py, test_plots.py) and the
-several-touch tests (test_joint.py, test_bestfirst.py)."""
+"""Fixtures shared by several tests: the bundled libraries (indexed once per session), the
+picture tests (test_viz.py, test_plots.py) and the several-touch tests (test_joint.py,
+test_bestfirst.py)."""
 
 import dataclasses
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
 import meshrec
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
 
 #: The seed of the touch on the small ellipsoid below.
 TOUCH_SEED = 8
@@ -32,6 +36,20 @@ def _equivalent_truth(sim, found):
         T_touch_model=np.linalg.inv(T_model_touch),
         clean_curves=tuple(c @ S.T for c in sim.clean_curves),
     )
+
+
+@pytest.fixture(scope="session")
+def surfaces(tmp_path_factory):
+    """The paper's four surfaces (``models/surfaces``), indexed once into a fresh cache."""
+    cache = tmp_path_factory.mktemp("cache")
+    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
+
+
+@pytest.fixture(scope="session")
+def objects(tmp_path_factory):
+    """The four bundled objects (``models/objects``), indexed once into a fresh cache."""
+    cache = tmp_path_factory.mktemp("cache")
+    return meshrec.ModelLibrary.from_folder(MODELS / "objects", cache_dir=cache)
 
 
 @pytest.fixture(scope="session")

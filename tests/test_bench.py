@@ -4,30 +4,13 @@ The slow-marked protocol tests run a few seeded trials of each of the paper's pr
 and assert the issue's recognition and localisation targets (not timing).
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import meshrec
 from meshrec import bench, defaults
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
 OBJECTS = ("cylinder_1", "cylinder_2", "elliptic_cylinder", "sphere")
-
-
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    return meshrec.ModelLibrary.from_folder(
-        MODELS / "surfaces", cache_dir=tmp_path_factory.mktemp("cache")
-    )
-
-
-@pytest.fixture(scope="module")
-def objects(tmp_path_factory):
-    return meshrec.ModelLibrary.from_folder(
-        MODELS / "objects", cache_dir=tmp_path_factory.mktemp("cache")
-    )
 
 
 @pytest.mark.slow

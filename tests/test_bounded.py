@@ -5,12 +5,9 @@ brute-force twin); the ranking, pruning and screening starts recomputed from it 
 rules of stage 2; :func:`meshrec.registration.phi.search_phi` on its rows.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-import meshrec
 from meshrec import bench, defaults
 from meshrec.registration.bounded import bounded_grid_errors, exact_samples
 from meshrec.registration.brackets import grid_errors, phi_brackets, phi_error, refine_phis
@@ -18,14 +15,6 @@ from meshrec.registration.lookup import lookup_candidates
 from meshrec.registration.phi import search_phi
 from meshrec.registration.register import touch_geometry
 from meshrec.registration.sampling import even_subsample
-
-MODELS = Path(__file__).resolve().parents[1] / "models"
-
-
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
 
 
 def _cases(surfaces):

@@ -27,12 +27,6 @@ from meshrec.registration.register import register, register_coarse, register_fu
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
-
-
 # ------------------------------------------------------------------ the rule
 def test_survivors_follow_the_log_likelihood_rule_worked_by_hand():
     n, noise = 100, 0.01

@@ -4,16 +4,12 @@ The truth is known independently: the simulation records the true contact and th
 motion it applied, and the paper surfaces' symmetry groups are analytic.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 import meshrec
 from meshrec import defaults
-
-MODELS = Path(__file__).resolve().parents[1] / "models"
 
 #: The paper's Figure 7 objects: the seeded contacts are on their curved sides, where a
 #: touch can tell them apart (their flat caps are identical discs).
@@ -26,18 +22,6 @@ OBJECT_SIDES = {
 OBJECT_POINTS, OBJECT_NOISE = 41, 0.1
 #: The issue's localisation target on the paper surfaces (model units).
 LOCALISATION_TOL = 0.05
-
-
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
-
-
-@pytest.fixture(scope="module")
-def objects(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "objects", cache_dir=cache)
 
 
 def _object_touch(model, seed):

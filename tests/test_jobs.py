@@ -4,8 +4,6 @@ Known answers: the longest-first split worked by hand; a job's result is the sta
 function's own, called directly.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -19,14 +17,6 @@ from meshrec.recognition.jobs import (
 )
 from meshrec.recognition.screen import library_sites, screen_library
 from meshrec.registration.register import register, register_coarse, touch_geometry
-
-MODELS = Path(__file__).resolve().parents[1] / "models"
-
-
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
 
 
 # ------------------------------------------------------------------ the split

@@ -27,12 +27,6 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
 @pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
-
-
-@pytest.fixture(scope="module")
 def touches(surfaces):
     out = []
     for name in meshrec.PAPER_SURFACES:

@@ -29,12 +29,6 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
 @pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
-
-
-@pytest.fixture(scope="module")
 def parts(surfaces):
     """Right arguments for every stage, from one traced registration."""
     model = surfaces["ellipsoid"]

@@ -6,8 +6,6 @@ turned by a known angle about its normal changes phi by that angle; a brute-forc
 of the widened (K, H) lookup; the composition of the public stages run by hand.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -32,14 +30,6 @@ from meshrec.registration.sampling import even_subsample
 from meshrec.registration.screening import screen_candidates
 from meshrec.registration.searching import search_candidates
 from meshrec.registration.transform import apply_transform, superposition
-
-MODELS = Path(__file__).resolve().parents[1] / "models"
-
-
-@pytest.fixture(scope="module")
-def surfaces(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("cache")
-    return meshrec.ModelLibrary.from_folder(MODELS / "surfaces", cache_dir=cache)
 
 
 @pytest.fixture(scope="module")
