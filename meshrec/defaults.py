@@ -386,6 +386,12 @@ RECOGNISE_P_VALUE = 0.01
 #: had no vertex on its cylinder, 42 of 60 touches rejected at 1x: 8 were found at 3x,
 #: every one at 4x).
 LOOKUP_WIDEN_SCALE = 4.0
+#: ... and, for one touch that even then fits no model to the noise, once more with up to
+#: this many candidates per model (MAX_CANDIDATES otherwise); every model keeps its best
+#: fit of the passes. The widened window can match most of a rough scan's sites (5,474 of
+#: the YCB scissors' 6,068 for a touch across its edge) and 64 spread candidates then left
+#: the true contact 6 mm from the nearest.
+LOOKUP_DENSE_CANDIDATES = 256
 
 # --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
 #: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian

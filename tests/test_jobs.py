@@ -91,6 +91,10 @@ def test_jobs_are_checked(surfaces):
         StageJob("screened", model, (screen, 1.0))
     with pytest.raises(ValueError, match="payload must be None"):
         StageJob("coarse", model, coarse)
+    with pytest.raises(ValueError, match="payload must be >= 1"):
+        StageJob("register", model, 0)
+    with pytest.raises(TypeError, match="payload must be an integer"):
+        StageJob("register", model, 64.0)
     with pytest.raises(TypeError, match="job must be a StageJob"):
         run_stage("coarse", touch, touch_geometry(touch), "lm")
     assert set(STAGE_KINDS) == {"register", "coarse", "leader", "full", "pruned", "screened"}
@@ -125,3 +129,9 @@ def test_each_kind_gives_its_stage_functions_result(surfaces):
     screened = run_stage(StageJob("screened", model, (screen, i)), touch, g, "lm")
     assert screened.pruned
     assert len(screened.candidate_points) == 1
+    # a "register" job's payload caps the candidates, as register's max_candidates does
+    few = run_stage(StageJob("register", model, 3), touch, g, "lm")
+    direct = register(touch, model, geometry=g, max_candidates=3)
+    assert few.candidates == direct.candidates == 3 < whole.candidates
+    assert few.error == direct.error
+    np.testing.assert_array_equal(few.T_model_touch, direct.T_model_touch)

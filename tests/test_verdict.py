@@ -86,9 +86,42 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert rec.verdict == "unknown"
     assert rec.plausible == ()
     assert "not in the library" in rec.reason
-    # it looked harder (a widened lookup) before concluding
+    # it looked harder (a widened lookup, then more candidates) before concluding
     assert rec.widened_seconds > 0
     assert any("widened" in w for w in rec.warnings)
+    assert any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
+
+
+def test_each_model_keeps_its_best_fit_of_the_harder_looks(objects):
+    """A touch on a torus (tube radius 10) fits no model of the objects: every model is
+    registered again with the widened lookup, then with more candidates, and keeps the best
+    of its fits (checked against those registrations made directly: the brute-force twin).
+    """
+    torus = trimesh.creation.torus(30, 10, major_sections=96, minor_sections=48)
+    touch = meshrec.simulate_touch(torus, length=25, noise=0.05, rng=11).touch
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touch, objects)
+        wide = {
+            m.name: meshrec.register(touch, m, lookup_scale=defaults.LOOKUP_WIDEN_SCALE)
+            for m in objects
+        }
+        dense = {
+            m.name: meshrec.register(
+                touch,
+                m,
+                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+                max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
+            )
+            for m in objects
+        }
+    assert any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
+    assert rec.verdict == "unknown"
+    assert all(not r.rejected for r in rec.ranking)
+    for reg in rec.ranking:
+        assert reg.error <= min(wide[reg.model].error, dense[reg.model].error)
+    # the denser look found a better fit somewhere (else this test would not tell)
+    assert any(dense[m].error < wide[m].error for m in objects.names)
 
 
 @pytest.mark.parametrize(

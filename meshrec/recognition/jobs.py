@@ -10,7 +10,8 @@ model, the same code in this process, in a local worker process or on a Dask wor
 
 The kinds of job (``StageJob.kind``) and what :func:`run_stage` returns for each:
 
-* ``"register"``: :func:`~meshrec.registration.register.register` (all the stages): a
+* ``"register"``: :func:`~meshrec.registration.register.register` (all the stages), with
+  at most ``payload`` candidates per model (None: ``defaults.MAX_CANDIDATES``): a
   Registration;
 * ``"coarse"``: :func:`~meshrec.registration.register.register_coarse`: a
   CoarseRegistration;
@@ -32,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance, check_int, check_number
 from meshrec.io.touch import TouchData
@@ -61,8 +63,9 @@ class StageJob:
     model : ModelIndex
         The model it runs on (a worker runs it on its own copy, checked equal).
     payload : object
-        The CoarseRegistration (``"full"``, ``"pruned"``) or the ``(LibraryScreen, i)``
-        pair (``"screened"``); None otherwise.
+        The CoarseRegistration (``"full"``, ``"pruned"``), the ``(LibraryScreen, i)``
+        pair (``"screened"``), or the most candidates to look up (``"register"``: a
+        positive int, or None for ``defaults.MAX_CANDIDATES``); None otherwise.
     cost : float
         Its expected cost, in any unit shared by a batch (for :func:`balanced_chunks`).
 
@@ -95,6 +98,9 @@ class StageJob:
                 )
             check_instance(self.payload[0], LibraryScreen, "payload[0]")
             check_int(self.payload[1], "payload[1]", minimum=0)
+        elif self.kind == "register":
+            if self.payload is not None:
+                check_int(self.payload, "payload", minimum=1)
         elif self.payload is not None:
             raise ValueError(f"payload must be None for a {self.kind!r} job, got a payload")
 
@@ -140,8 +146,15 @@ def run_stage(
     check_instance(job, StageJob, "job")
     model = job.model if model is None else model
     if job.kind == "register":
+        most = defaults.MAX_CANDIDATES if job.payload is None else int(job.payload)
         return register(
-            touch, model, geometry=geometry, method=method, trace=trace, lookup_scale=lookup_scale
+            touch,
+            model,
+            geometry=geometry,
+            method=method,
+            trace=trace,
+            lookup_scale=lookup_scale,
+            max_candidates=most,
         )
     if job.kind == "coarse":
         return register_coarse(touch, model, geometry)

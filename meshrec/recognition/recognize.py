@@ -707,11 +707,14 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
     )
 
 
-def _widened(rec: Recognition, fits: dict, models: dict, method: str, run) -> Recognition:
+def _widened(
+    rec: Recognition, fits: dict, models: dict, method: str, run, max_candidates=None
+) -> Recognition:
     """Register every model again with the (K, H) window widened; keep each one's better fit.
 
     With several touches, each is registered alone with the wider window; ``fits`` (the
-    joint fits, by model) is updated in place where the wider pass fits better.
+    joint fits, by model) is updated in place where the wider pass fits better. One touch
+    may look at up to ``max_candidates`` candidates per model (None: the default number).
     """
     merged = []
     wides = {}
@@ -722,6 +725,7 @@ def _widened(rec: Recognition, fits: dict, models: dict, method: str, run) -> Re
             rec.geometry,
             method,
             lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            max_candidates=max_candidates,
         )
         wides = {reg.model: wide for reg, wide in zip(rec.ranking, regs, strict=True)}
     for reg in rec.ranking:
@@ -776,9 +780,8 @@ def _with_verdict(
     rec = _ordered(rec, scores)
     t_score = time.perf_counter() - t0
     t_wide = 0.0
-    best = rec.scores[0] if rec.scores else None
     cautions = []
-    if best is None or best.rms is None or fit_p_value(best.rms, n, noise) < defaults.WIDEN_P_VALUE:
+    if _fits_worse_than_noise(rec, n, noise):
         # Even the best fit is worse than the noise allows: look harder before
         # concluding. The lookup is a prior, not a gate: curves straddling a seam between
         # patches of different curvature may mismatch every vertex's (K, H) of the right
@@ -789,10 +792,24 @@ def _with_verdict(
         rec = _widened(rec, fits, by_name, method, run)
         scores, noise = _score(rec, prior)
         rec = _ordered(rec, scores)
+        looked = "every model registered again"
+        if len(rec.touches) == 1 and _fits_worse_than_noise(rec, n, noise):
+            # Still nothing fits: where the widened window matches most of a model's sites
+            # (a thin, rough scan), the spread candidates lie too far apart to start from;
+            # look once more among more of them. Each model keeps its best fit of all.
+            rec = _widened(
+                rec, fits, by_name, method, run, max_candidates=defaults.LOOKUP_DENSE_CANDIDATES
+            )
+            scores, noise = _score(rec, prior)
+            rec = _ordered(rec, scores)
+            looked = (
+                f"every model registered again, then once more with up to "
+                f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates"
+            )
         t_wide = time.perf_counter() - t1
         cautions.append(
             "the best fit was worse than the noise allows: the curvature lookup was widened "
-            f"{defaults.LOOKUP_WIDEN_SCALE:g} times and every model registered again"
+            f"{defaults.LOOKUP_WIDEN_SCALE:g} times and {looked}"
         )
     t1 = time.perf_counter()
     names = [s.model for s in rec.scores]
@@ -833,6 +850,14 @@ def _with_verdict(
         scoring_seconds=t_score,
         widened_seconds=t_wide,
         touch_rms=per_touch,
+    )
+
+
+def _fits_worse_than_noise(rec: Recognition, n: int, noise: float) -> bool:
+    """Whether even the best-scored model (or none at all) fits worse than the noise allows."""
+    best = rec.scores[0] if rec.scores else None
+    return (
+        best is None or best.rms is None or fit_p_value(best.rms, n, noise) < defaults.WIDEN_P_VALUE
     )
 
 

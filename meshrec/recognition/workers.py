@@ -278,6 +278,7 @@ class ModelWorkers:
         lookup_scale: float = 1.0,
         trace: bool = False,
         progress: Callable[[int, int, str], None] | None = None,
+        max_candidates: int | None = None,
     ) -> list:
         """Register ``touch`` on each of ``models`` (``meshrec.registration.register``).
 
@@ -294,6 +295,8 @@ class ModelWorkers:
         progress : callable, optional
             ``progress(i, n, name)``: before model ``i`` is registered (serial), or as the
             results come in (in parallel).
+        max_candidates : int, optional
+            The most candidate contacts per model (default ``defaults.MAX_CANDIDATES``).
 
         Returns
         -------
@@ -309,7 +312,7 @@ class ModelWorkers:
         RuntimeError
             If the workers were closed.
         """
-        jobs = [StageJob("register", m) for m in models]
+        jobs = [StageJob("register", m, max_candidates) for m in models]
         n = len(jobs)
         report = None
         if progress is not None:
