@@ -330,13 +330,39 @@ def screened_small(monkeypatch):
     monkeypatch.setattr(defaults, "SCREEN_LEADERS", 1)
 
 
+def _by_screen(regs) -> bool:
+    return any(r.pruned and len(r.candidate_points) == 1 for r in regs)
+
+
+def _after_first_stages(regs) -> bool:
+    return any(r.pruned and len(r.candidate_points) > 1 for r in regs)
+
+
+def _rejected(regs) -> bool:
+    return any(r.rejected for r in regs)
+
+
+def _scan(lib, name, branch, first: int):
+    """The first seeded touch on model ``name`` (seeds from ``first``) that the serial
+    cascade names best and that takes ``branch`` (which seed does depends on the meshes
+    trimesh writes and on the numerical libraries' versions, not on what is tested)."""
+    for seed in range(first, first + 40):
+        touch = meshrec.simulate_touch(lib[name], rng=seed).touch
+        rec = meshrec.recognize(touch, lib)
+        if rec.best is not None and rec.best.model == name and branch(rec.ranking):
+            return touch
+    pytest.fail(f"no touch on {name!r} (seeds {first} to {first + 39}) takes {branch.__name__}")
+
+
 def _cascade_touches(lib):
-    """On a (rng 3): b pruned by the cascade; on b (rng 4): a and c rejected; on b (rng 5):
-    a and c pruned by the screen; and the last two together."""
-    a3, b4, b5 = (
-        meshrec.simulate_touch(lib[n], rng=s).touch for n, s in (("a", 3), ("b", 4), ("b", 5))
+    """On a: b pruned by the cascade after its first stages; on b: a model rejected by the
+    lookup; on b: models pruned by the screen; and the last two together."""
+    a, b_rejects, b_screens = (
+        _scan(lib, "a", _after_first_stages, 3),
+        _scan(lib, "b", _rejected, 4),
+        _scan(lib, "b", _by_screen, 5),
     )
-    return [a3, b4, b5, [b4, b5]]
+    return [a, b_rejects, b_screens, [b_rejects, b_screens]]
 
 
 def _same_cascade(a, b):
@@ -349,17 +375,17 @@ def _same_cascade(a, b):
 def _cascade_exercised(recs):
     """The touches did take every branch of the cascade (else the test proves little)."""
     regs = [r for rec in recs for r in rec.ranking]
-    assert any(r.pruned and len(r.candidate_points) == 1 for r in regs)  # by the screen
-    assert any(r.pruned and len(r.candidate_points) > 1 for r in regs)  # after 1st stages
-    assert any(r.rejected for r in regs)
+    assert _by_screen(regs)
+    assert _after_first_stages(regs)
+    assert _rejected(regs)
 
 
 @pytest.mark.slow
 def test_local_processes_give_the_serial_cascades_result(library, screened_small):
     lib, cache = library
-    touches = _cascade_touches(lib)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        touches = _cascade_touches(lib)
         serial = [meshrec.recognize(t, lib) for t in touches]
         with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
             assert workers.mode == "processes"
@@ -380,9 +406,9 @@ def test_local_processes_give_the_serial_cascades_result(library, screened_small
 @pytest.mark.slow
 def test_a_dask_cluster_gives_the_serial_cascades_result(library, dask_cluster, screened_small):
     lib, cache = library
-    touches = _cascade_touches(lib)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        touches = _cascade_touches(lib)
         serial = [meshrec.recognize(t, lib) for t in touches]
         with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
             remote = [meshrec.recognize(t, lib, workers=workers) for t in touches]
