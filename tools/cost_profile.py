@@ -1,0 +1,173 @@
+"""Where one recognition's CPU time goes, and what a cheap lower bound could save the phi grid.
+
+Two measurements on the four paper surfaces (``models/surfaces``), in-process with a warm
+cache, on the 12 seeded touches of ``tools/speed.py`` (``bench.paper_touch``, seeds 0-2):
+
+1. CPU seconds per stage: each registration's ``StageTimes`` taken with
+   ``time.process_time`` instead of the wall clock (lookup, phi grid and its refinement,
+   screening, local searches, final refinements), and the work of ``recognize`` outside
+   the registrations (the contact's curve fits, the unit check, the pose freedom, the
+   probe-offset check after the verdict).
+2. The phi grid by bounds (``meshrec.registration.bounded``) started from a per-point
+   lower bound ``max(d - s, 0)`` instead of 0, ``d`` the exact distance and ``s`` a
+   slack: what a distance grid with error at most ``s`` would give it (a grid of unsigned
+   distances with spacing h bounds d(p) >= d(node) - |p - node|, a slack of up to
+   0.87 h). It counts the exact point distances still needed, against the whole grid's.
+   The bound is started by running the module's own function with its zero start
+   replaced (its source, one line changed): the same algorithm, not a re-implementation.
+
+Prints Markdown tables. Usage::
+
+    python tools/cost_profile.py [--slacks 0 0.002 0.005 0.01 0.02 0.03]
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import meshrec
+import meshrec.recognition.recognize as recognize_module
+import meshrec.registration.bounded as bounded
+import meshrec.registration.brackets as brackets
+import meshrec.registration.register as register_module
+from meshrec import bench
+from meshrec.registration.objective import point_distances
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+OUTSIDE = ("touch_geometry", "check_units", "_with_pose_freedom", "warn_probe_offset")
+
+
+class _ProcessClock:
+    """Stands for the ``time`` module inside ``register``: its stage clock on CPU time."""
+
+    perf_counter = staticmethod(time.process_time)
+    process_time = staticmethod(time.process_time)
+
+
+def _stage_cpu(library, touches, out: list[str]) -> None:
+    spent = dict.fromkeys(OUTSIDE, 0.0)
+    originals = {name: getattr(recognize_module, name) for name in OUTSIDE}
+
+    def timed(name):
+        def call(*args, **kwargs):
+            c0 = time.process_time()
+            try:
+                return originals[name](*args, **kwargs)
+            finally:
+                spent[name] += time.process_time() - c0
+
+        return call
+
+    register_module.time = _ProcessClock
+    for name in OUTSIDE:
+        setattr(recognize_module, name, timed(name))
+    try:
+        stages = register_module.StageTimes()
+        total = 0.0
+        for touch in touches:
+            c0 = time.process_time()
+            rec = meshrec.recognize(touch, library)
+            total += time.process_time() - c0
+            for r in rec.ranking:
+                stages = stages + r.times
+    finally:
+        register_module.time = time
+        for name in OUTSIDE:
+            setattr(recognize_module, name, originals[name])
+    n = len(touches)
+    out.append(f"### CPU per recognition: {total / n:.3f} s (mean of {n} touches)\n")
+    out.append("| part | CPU s per recognition | share |")
+    out.append("|---|---:|---:|")
+    for key in ("lookup", "phi", "screen", "search", "refine"):
+        v = getattr(stages, key) / n
+        out.append(f"| stage {key} | {v:.3f} | {v * n / total:.0%} |")
+    for name in OUTSIDE:
+        v = spent[name] / n
+        out.append(f"| {name} | {v:.4f} | {v * n / total:.1%} |")
+    out.append("")
+
+
+def _started_bounds():
+    """``bounded_grid_errors`` with an ``init`` argument: the starting per-point bounds."""
+    src = inspect.getsource(bounded.bounded_grid_errors)
+    for old, new in (
+        ("rounds: Sequence[int] = defaults.PHI_BOUND_ROUNDS,",
+         "rounds: Sequence[int] = defaults.PHI_BOUND_ROUNDS, init=None,"),
+        ("dist = np.zeros((c, s, n))",
+         "dist = np.zeros((c, s, n)) if init is None else init.copy()"),
+    ):
+        if old not in src:
+            raise RuntimeError(f"bounded_grid_errors changed: {old!r} not found")
+        src = src.replace(old, new)
+    namespace = dict(vars(bounded))
+    exec(src, namespace)  # the module's own source, one line changed
+    return namespace["bounded_grid_errors"]
+
+
+def _bound_slack(library, touches, slacks, out: list[str]) -> None:
+    calls = []
+    original = brackets.bounded_grid_errors
+
+    def spy(model, origins, local_points, steps, **kwargs):
+        calls.append((model, origins, local_points, steps, kwargs))
+        return original(model, origins, local_points, steps, **kwargs)
+
+    brackets.bounded_grid_errors = spy
+    try:
+        for touch in touches:
+            meshrec.recognize(touch, library)
+    finally:
+        brackets.bounded_grid_errors = original
+    started = _started_bounds()
+    whole = now = 0
+    needed = np.zeros(len(slacks))
+    for model, origins, local_points, steps, kwargs in calls:
+        placed = bounded.placed_grid(origins, np.array(local_points), steps)
+        d = point_distances(model, placed.reshape(-1, 3)).reshape(placed.shape[:3])
+        whole += d.size
+        ref = original(model, origins, local_points, steps, **kwargs)
+        now += ref.evaluated
+        for i, s in enumerate(slacks):
+            g = started(model, origins, local_points, steps, init=np.maximum(d - s, 0.0), **kwargs)
+            both = ref.exact & g.exact
+            if not np.array_equal(g.errors[both], ref.errors[both]):
+                raise RuntimeError("an exact sample differs: the bound was not a bound")
+            needed[i] += g.evaluated
+    out.append(f"### Phi grid: exact point distances, {len(calls)} grids, "
+               f"{whole} point distances in all\n")
+    out.append("| start of the bounds | exact distances | fraction of the whole grid |")
+    out.append("|---|---:|---:|")
+    out.append(f"| 0 (as now) | {now} | {now / whole:.3f} |")
+    for s, k in zip(slacks, needed, strict=True):
+        out.append(f"| max(d - {s:g}, 0) | {int(k)} | {k / whole:.3f} |")
+    out.append("")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--trials", type=int, default=3, help="touches per paper surface")
+    p.add_argument("--slacks", type=float, nargs="*",
+                   default=[0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.03])
+    args = p.parse_args(argv)
+    warnings.simplefilter("ignore")
+    library = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
+    touches = [bench.paper_touch(library[s], seed).touch
+               for s in meshrec.PAPER_SURFACES for seed in range(args.trials)]
+    for touch in touches[:: max(args.trials, 1)]:
+        meshrec.recognize(touch, library)  # warm: every model's lazy tables
+    out = ["# Where a recognition's time goes (four paper surfaces)", ""]
+    _stage_cpu(library, touches, out)
+    _bound_slack(library, touches, args.slacks, out)
+    print("\n".join(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
