@@ -15,10 +15,16 @@ cache, on the 12 seeded touches of ``tools/speed.py`` (``bench.paper_touch``, se
    0.87 h). It counts the exact point distances still needed, against the whole grid's.
    The bound is started by running the module's own function with its zero start
    replaced (its source, one line changed): the same algorithm, not a re-implementation.
+3. With ``--errors``: how far an approximate distance for the phi grid (stage 2 only) may
+   be off. The phi grid's point distances (``meshrec.registration.bounded``) get an
+   error uniform in [-e, e] (clipped at 0), a fixed function of the point's coordinates
+   (as a distance grid's error is: a hash of their bits, not a random draw); every other
+   stage stays exact. Each touch's verdict, best model, best error and contact are
+   compared with the exact run's.
 
 Prints Markdown tables. Usage::
 
-    python tools/cost_profile.py [--slacks 0 0.002 0.005 0.01 0.02 0.03]
+    python tools/cost_profile.py [--slacks 0 0.002 0.005 0.01 0.02 0.03] [--errors 1e-4 1e-2]
 """
 
 from __future__ import annotations
@@ -150,11 +156,52 @@ def _bound_slack(library, touches, slacks, out: list[str]) -> None:
     out.append("")
 
 
+def _hashed_error(points: np.ndarray, e: float) -> np.ndarray:
+    """An error in [-e, e] per point, a fixed function of its coordinates' bits."""
+    bits = np.frombuffer(np.ascontiguousarray(points, dtype=np.float64).tobytes(), np.uint64)
+    h = bits.reshape(-1, 3)
+    mixed = h[:, 0] ^ (h[:, 1] >> np.uint64(7)) ^ (h[:, 2] >> np.uint64(13))
+    u = (mixed % np.uint64(1000003)).astype(np.float64) / 1000003.0
+    return e * (2.0 * u - 1.0)
+
+
+def _perturbed(library, touches, errors, out: list[str]) -> None:
+    exact = [meshrec.recognize(t, library) for t in touches]
+    out.append("### Phi grid distances off by up to e (other stages exact)\n")
+    out.append("| e | same verdict | same best model | best error bit-equal | "
+               "best error, largest relative change | contact moved, largest | moved on |")
+    out.append("|---:|---:|---:|---:|---:|---:|---|")
+    n = len(touches)
+    for e in errors:
+        def approx(model, points, _e=e):
+            d = point_distances(model, points)
+            return np.maximum(d + _hashed_error(points, _e), 0.0)
+
+        bounded.point_distances = approx
+        try:
+            recs = [meshrec.recognize(t, library) for t in touches]
+        finally:
+            bounded.point_distances = point_distances
+        verdict = sum(r.verdict == r0.verdict for r, r0 in zip(recs, exact, strict=True))
+        best = sum(r.best.model == r0.best.model for r, r0 in zip(recs, exact, strict=True))
+        equal = sum(r.best.error == r0.best.error for r, r0 in zip(recs, exact, strict=True))
+        rel = max(abs(r.best.error / r0.best.error - 1) for r, r0 in zip(recs, exact, strict=True))
+        moved = max(float(np.linalg.norm(r.best.contact - r0.best.contact))
+                    for r, r0 in zip(recs, exact, strict=True))
+        where = sorted({r0.best.model for r, r0 in zip(recs, exact, strict=True)
+                        if float(np.linalg.norm(r.best.contact - r0.best.contact)) > 1e-6})
+        out.append(f"| {e:g} | {verdict}/{n} | {best}/{n} | {equal}/{n} | {rel:.2e} | "
+                   f"{moved:.3g} | {', '.join(where) or '-'} |")
+    out.append("")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=3, help="touches per paper surface")
     p.add_argument("--slacks", type=float, nargs="*",
                    default=[0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.03])
+    p.add_argument("--errors", type=float, nargs="*", default=[],
+                   help="errors e of the phi grid's distances to try (none: skip)")
     args = p.parse_args(argv)
     warnings.simplefilter("ignore")
     library = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
@@ -165,6 +212,8 @@ def main(argv=None) -> int:
     out = ["# Where a recognition's time goes (four paper surfaces)", ""]
     _stage_cpu(library, touches, out)
     _bound_slack(library, touches, args.slacks, out)
+    if args.errors:
+        _perturbed(library, touches, args.errors, out)
     print("\n".join(out))
     return 0
 
