@@ -22,15 +22,25 @@ cache, on the 12 seeded touches of ``tools/speed.py`` (``bench.paper_touch``, se
    stage stays exact. Each touch's verdict, best model, best error and contact are
    compared with the exact run's.
 
+4. With ``--grid N``: a prototype of that distance, not used by meshrec: per model a
+   dense grid of distances over its bounding box grown by 0.4 (the touches' reach),
+   ``N`` nodes along the longest side, each node's distance from libigl (unsigned, or
+   signed by the side of the closest face's normal as the residuals are), and the phi
+   grids' points looked up by trilinear interpolation (the absolute value of the signed
+   one): build time and size per model, lookup time against libigl's on the same
+   points, and the lookups' errors.
+
 Prints Markdown tables. Usage::
 
     python tools/cost_profile.py [--slacks 0 0.002 0.005 0.01 0.02 0.03] [--errors 1e-4 1e-2]
+                                 [--grid 64]
 """
 
 from __future__ import annotations
 
 import argparse
 import inspect
+import itertools
 import sys
 import time
 import warnings
@@ -156,6 +166,88 @@ def _bound_slack(library, touches, slacks, out: list[str]) -> None:
     out.append("")
 
 
+def _spied_grids(library, touches) -> list:
+    """The phi grids' arguments of the touches' recognitions."""
+    calls = []
+    original = brackets.bounded_grid_errors
+
+    def spy(model, origins, local_points, steps, **kwargs):
+        calls.append((model, origins, local_points, steps))
+        return original(model, origins, local_points, steps, **kwargs)
+
+    brackets.bounded_grid_errors = spy
+    try:
+        for touch in touches:
+            meshrec.recognize(touch, library)
+    finally:
+        brackets.bounded_grid_errors = original
+    return calls
+
+
+def _trilinear(lo: np.ndarray, h: float, d: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Trilinear interpolation of node values ``d`` (grid from ``lo``, spacing ``h``)."""
+    x = (P - lo) / h
+    i = np.clip(np.floor(x).astype(np.int64), 0, np.array(d.shape) - 2)
+    f = x - i
+    out = np.zeros(len(P))
+    for corner in itertools.product((0, 1), repeat=3):
+        w = np.ones(len(P))
+        for axis, up in enumerate(corner):
+            w *= f[:, axis] if up else 1.0 - f[:, axis]
+        out += w * d[i[:, 0] + corner[0], i[:, 1] + corner[1], i[:, 2] + corner[2]]
+    return out
+
+
+def _grid_prototype(library, touches, nodes: int, out: list[str]) -> None:
+    calls = _spied_grids(library, touches)
+    out.append(f"### Prototype distance grids, {nodes} nodes along the longest side\n")
+    out.append("| model | nodes | MB (float32) | spacing | build CPU s (signed) |")
+    out.append("|---|---:|---:|---:|---:|")
+    grids = {}
+    for m in library:
+        V = m.mesh.vertices
+        lo, hi = V.min(axis=0) - 0.4, V.max(axis=0) + 0.4
+        h = float((hi - lo).max()) / (nodes - 1)
+        shape = tuple(int(k) for k in np.ceil((hi - lo) / h).astype(int) + 1)
+        axes = [lo[i] + h * np.arange(shape[i]) for i in range(3)]
+        X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        c0 = time.process_time()
+        dist, closest, face = m.surface.closest_points(X)
+        side = np.einsum("ij,ij->i", X - closest, m.mesh.face_normals[face])
+        signed = np.where(side < 0.0, -dist, dist)
+        took = time.process_time() - c0
+        grids[m.name] = (lo, h, dist.astype(np.float32).reshape(shape),
+                         signed.astype(np.float32).reshape(shape))
+        out.append(f"| {m.name} | {'x'.join(map(str, shape))} | {4e-6 * dist.size:.1f} | "
+                   f"{h:.4f} | {took:.2f} |")
+    out.append("")
+    t_exact = t_grid = 0.0
+    errors = {"unsigned": [], "signed": []}
+    n = 0
+    for model, origins, local_points, steps in calls:
+        P = bounded.placed_grid(origins, np.array(local_points), steps).reshape(-1, 3)
+        c0 = time.process_time()
+        exact = point_distances(model, P)
+        t_exact += time.process_time() - c0
+        lo, h, unsigned, signed = grids[model.name]
+        c0 = time.process_time()
+        approx = _trilinear(lo, h, unsigned, P)
+        t_grid += time.process_time() - c0
+        errors["unsigned"].append(np.abs(approx - exact))
+        errors["signed"].append(np.abs(np.abs(_trilinear(lo, h, signed, P)) - exact))
+        n += len(P)
+    out.append(f"The {len(calls)} phi grids' {n} points: libigl {t_exact:.2f} s of CPU "
+               f"({1e6 * t_exact / n:.2f} us per point), trilinear lookups {t_grid:.2f} s "
+               f"({1e6 * t_grid / n:.2f} us per point).\n")
+    out.append("| grid | error mean | median | 99th percentile | largest |")
+    out.append("|---|---:|---:|---:|---:|")
+    for kind, parts in errors.items():
+        e = np.concatenate(parts)
+        out.append(f"| {kind} | {e.mean():.2e} | {np.median(e):.2e} | "
+                   f"{np.quantile(e, 0.99):.2e} | {e.max():.2e} |")
+    out.append("")
+
+
 def _hashed_error(points: np.ndarray, e: float) -> np.ndarray:
     """An error in [-e, e] per point, a fixed function of its coordinates' bits."""
     bits = np.frombuffer(np.ascontiguousarray(points, dtype=np.float64).tobytes(), np.uint64)
@@ -202,6 +294,8 @@ def main(argv=None) -> int:
                    default=[0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.03])
     p.add_argument("--errors", type=float, nargs="*", default=[],
                    help="errors e of the phi grid's distances to try (none: skip)")
+    p.add_argument("--grid", type=int, default=0,
+                   help="nodes along the longest side of the prototype grids (0: skip)")
     args = p.parse_args(argv)
     warnings.simplefilter("ignore")
     library = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
@@ -214,6 +308,8 @@ def main(argv=None) -> int:
     _bound_slack(library, touches, args.slacks, out)
     if args.errors:
         _perturbed(library, touches, args.errors, out)
+    if args.grid:
+        _grid_prototype(library, touches, args.grid, out)
     print("\n".join(out))
     return 0
 
