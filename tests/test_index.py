@@ -407,6 +407,31 @@ def test_interpolated_normals(sphere_index):
     )
 
 
+def test_interpolated_normals_fall_back_on_the_face_normal_where_the_blend_vanishes():
+    # Corner normals that cancel at the middle of an edge: the blend vanishes there and
+    # the face's own normal is used (computed here from its corners); elsewhere the
+    # blend, normalised, as np.linalg.norm would (the same bits).
+    from meshrec.model.mesh import MeshData
+    from meshrec.model.surface import AabbSurface
+
+    V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.2]])
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    surface = AabbSurface.from_mesh(MeshData.from_arrays(V, F), 30.0)
+    table = surface._face_table()
+    cn = table["corner_normals"].copy()
+    cn[0, 0] = [0.0, 0.6, 0.8]
+    cn[0, 1] = [0.0, -0.6, -0.8]
+    table["corner_normals"] = cn
+    p = np.array([[0.5, 0.0, 0.0], [0.2, 0.2, 0.0], [0.6, 0.6, 0.05]])
+    f = np.array([0, 0, 1])
+    got = surface.interpolated_normals(p, f)
+    np.testing.assert_allclose(got[0], [0.0, 0.0, 1.0], atol=1e-12)
+    w = surface._barycentric(p, f)
+    blend = np.einsum("ni,nij->nj", w, cn[f])
+    want = blend / np.linalg.norm(blend, axis=1)[:, None]
+    np.testing.assert_array_equal(got[1:], want[1:])
+
+
 @pytest.mark.parametrize(
     ("closest", "face", "match"),
     [

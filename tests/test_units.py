@@ -134,6 +134,19 @@ def test_millimetres_against_metres_is_caught(boxes):
         check_units(convert_touch(touch_m, "mm", "m"), boxes)
 
 
+def test_the_model_diagonals_are_kept_and_equal_to_brute_force(boxes):
+    # check_units keeps each mesh's bounding-box diagonal (asked at every recognition):
+    # the value kept is the diagonal of the vertices' box, and a second check agrees.
+    touch = _star(0.01)
+    check_units(touch, boxes)
+    for m in boxes:
+        want = float(np.linalg.norm(np.ptp(np.asarray(m.mesh.vertices), axis=0)))
+        assert m.mesh.__dict__["_bbox_diagonal"] == want
+    check_units(touch, boxes)
+    with pytest.raises(ValueError, match="larger"):
+        check_units(convert_touch(touch, "m", "mm"), boxes)
+
+
 def test_the_limits_are_the_defaults(boxes):
     big = float(np.linalg.norm(np.ptp(boxes["cracker"].mesh.vertices, axis=0)))  # the largest
     small = float(np.linalg.norm(np.ptp(boxes["flat"].mesh.vertices, axis=0)))

@@ -150,6 +150,27 @@ def test_models_of_another_library_are_refused(library):
         meshrec.recognize(one, lib, workers=ModelWorkers([lib["a"], lib["b"]]))
 
 
+def test_serial_workers_check_a_copy_by_its_fingerprint(library):
+    # The fingerprints are computed on first need (a serial run of the library's own
+    # models needs none): a copy of a model with the same arrays is accepted and gives
+    # the same registration, one with other arrays under the same name is refused.
+    import dataclasses
+
+    from meshrec.recognition.jobs import StageJob
+
+    lib, _ = library
+    one = _touches(lib)[0]
+    workers = ModelWorkers(lib, workers=1)
+    copy = dataclasses.replace(lib["a"])
+    assert copy is not lib["a"]
+    got = workers.run_stages([StageJob("register", copy)], one, None, "lm")[0]
+    want = workers.run_stages([StageJob("register", lib["a"])], one, None, "lm")[0]
+    assert (got.model, got.error, got.rms) == (want.model, want.error, want.rms)
+    impostor = dataclasses.replace(lib["b"], name="a")
+    with pytest.raises(ValueError, match="must belong to the workers' library, got 'a'"):
+        workers.run_stages([StageJob("register", impostor)], one, None, "lm")
+
+
 def test_run_stages_refuses_what_is_not_a_job(library):
     lib, _ = library
     one = _touches(lib)[0]

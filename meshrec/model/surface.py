@@ -271,13 +271,15 @@ class AabbSurface:
         m = len(mesh.faces)
         if f.size and (f.min() < 0 or f.max() >= m):
             raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
-        tri = mesh.faces[f]  # (n, 3)
         w = self._barycentric(P, f)
         normals = np.einsum("ni,nij->nj", w, self._face_table()["corner_normals"][f])
-        norm = np.linalg.norm(normals, axis=1)
+        # np.linalg.norm's own formula for real rows (the same bits, without its dispatch:
+        # a chart evaluation of the searches asks one point at a time)
+        norm = np.sqrt(np.add.reduce(normals * normals, axis=1))
         bad = ~(norm > 1e-12)
         if bad.any():
-            a, b, c = (mesh.vertices[tri[bad, i]] for i in range(3))
+            tri = mesh.faces[f[bad]]  # (k, 3)
+            a, b, c = (mesh.vertices[tri[:, i]] for i in range(3))
             fn = np.cross(b - a, c - a)
             normals[bad] = fn
             norm[bad] = np.linalg.norm(fn, axis=1)
@@ -317,6 +319,7 @@ class AabbSurface:
                 "b": b,
                 "c": c,
                 "ok": ok,
+                "all_ok": bool(ok.all()),
                 "grads": grads,
                 "corner_normals": corner_normals(self.mesh),
             }
@@ -337,7 +340,8 @@ class AabbSurface:
             return np.zeros((0, 3))
         p = np.ascontiguousarray(p, dtype=np.float64)
         w = igl.barycentric_coordinates(p, t["a"][f], t["b"][f], t["c"][f])
-        w[~t["ok"][f]] = 1.0 / 3.0
+        if not t["all_ok"]:
+            w[~t["ok"][f]] = 1.0 / 3.0
         w = np.clip(w, 0.0, None)
         return w / w.sum(axis=1, keepdims=True)
 

@@ -146,6 +146,16 @@ def _diagonal(points: np.ndarray) -> float:
     return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
 
 
+def _mesh_diagonal(mesh) -> float:
+    """A mesh's bounding-box diagonal, computed once per mesh (kept in its ``__dict__``
+    as :func:`meshrec.model.surface.corner_normals` keeps its table: every recognition
+    asks it of every model, 1% of a recognition of the paper surfaces)."""
+    d = mesh.__dict__.get("_bbox_diagonal")
+    if d is None:
+        d = mesh.__dict__["_bbox_diagonal"] = _diagonal(np.asarray(mesh.vertices))
+    return d
+
+
 def check_units(touch: TouchData, models) -> None:
     """Refuse a touch whose size cannot be that of a touch on any of the models.
 
@@ -183,7 +193,7 @@ def check_units(touch: TouchData, models) -> None:
     size = _diagonal(touch.points)
     if not size > 0.0:
         return  # a point-like touch: the geometry estimate says what is wrong with it
-    diagonals = np.array([_diagonal(np.asarray(m.mesh.vertices)) for m in models])
+    diagonals = np.array([_mesh_diagonal(m.mesh) for m in models])
     ratio = size / diagonals
     upper, lower = defaults.UNIT_MAX_TOUCH_DIAGONALS, 1.0 / defaults.UNIT_MISMATCH_RATIO
     if np.all(ratio > upper):

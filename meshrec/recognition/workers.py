@@ -217,7 +217,9 @@ class ModelWorkers:
             )
         self.models = models
         self._by_name = {m.name: m for m in models}
-        self._fingerprints = {m.name: _fingerprint(m) for m in models}
+        # computed on first need (a serial run of the library's own models needs none:
+        # a CRC-32 of every model's arrays was 1% of a recognition of the paper surfaces)
+        self._fingerprints: dict[str, tuple] = {}
         folder = getattr(library, "folder", None)
         self._spec = _Spec(
             folder=str(folder) if folder is not None else None,
@@ -248,6 +250,13 @@ class ModelWorkers:
         else:
             self.mode = "serial"
             self.workers = 1
+
+    def _fingerprint_of(self, name: str) -> tuple:
+        """The fingerprint of this library's model ``name``, computed once."""
+        fp = self._fingerprints.get(name)
+        if fp is None:
+            fp = self._fingerprints[name] = _fingerprint(self._by_name[name])
+        return fp
 
     def __repr__(self) -> str:
         return (
@@ -378,7 +387,9 @@ class ModelWorkers:
             check_instance(job, StageJob, f"jobs[{i}]")
             m = job.model
             known = self._by_name.get(m.name)
-            if known is not m and self._fingerprints.get(m.name) != _fingerprint(m):
+            if known is not m and (
+                known is None or self._fingerprint_of(m.name) != _fingerprint(m)
+            ):
                 raise ValueError(f"models must belong to the workers' library, got {m.name!r}")
         n = len(jobs)
         if self.mode == "serial" or n == 0:
@@ -401,7 +412,7 @@ class ModelWorkers:
         items = {
             i: (
                 jobs[i].kind,
-                self._fingerprints[jobs[i].model.name],
+                self._fingerprint_of(jobs[i].model.name),
                 probe_radius_of(jobs[i].model),
                 jobs[i].payload,
                 jobs[i].cost,
