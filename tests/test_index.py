@@ -745,3 +745,33 @@ def test_another_surface_backend_can_replace_the_default(sphere_index):
     assert backend.calls == 1
     with pytest.raises(TypeError, match="surface must be an AabbSurface to be cached"):
         other.to_record()
+
+
+def test_face_rows_on_demand_are_the_whole_tables_bits():
+    # Twin: every face's degeneracy and barycentric gradients computed at once for the
+    # whole mesh; the surface computes them face by face as queries reach them, in any
+    # order and any company, and must give the same bits (and so the same smooth heights).
+    from meshrec.model.surface import _face_gradients
+
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    data = MeshData.from_arrays(mesh.vertices, mesh.faces)
+    ok_all, grads_all = _face_gradients(data.vertices, data.faces)
+    rng = np.random.default_rng(12)
+    surface = AabbSurface.from_mesh(data, defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG)
+    twin = AabbSurface.from_mesh(data, defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG)
+    m = len(data.faces)
+    for size in (1, 5, 200, m):
+        f = rng.integers(0, m, size)
+        ok, grads = surface._face_rows(f)
+        assert np.array_equal(ok, ok_all[f])
+        assert np.array_equal(grads, grads_all[f])
+    # every face now asked once at least (the last query had m draws: most of them)
+    ok, grads = surface._face_rows(np.arange(m))
+    assert np.array_equal(grads, grads_all)
+    # heights and gradients: the same whichever faces a surface saw first
+    p = rng.normal(size=(300, 3))
+    _, closest, face = surface.closest_points(p)
+    got = twin.smooth_offsets_and_gradients(closest[::-1], face[::-1])
+    want = surface.smooth_offsets_and_gradients(closest, face)
+    assert np.array_equal(got[0][::-1], want[0])
+    assert np.array_equal(got[1][::-1], want[1])

@@ -226,14 +226,15 @@ class AabbSurface:
             Gradient of the height as the point moves in its face's plane.
         """
         f = np.asarray(face, dtype=np.int64)
-        w = self._barycentric(np.asarray(closest, dtype=np.float64), f)
+        ok, grads = self._face_rows(f)
+        w = _clipped_barycentric(self.mesh.vertices, self.mesh.faces[f], closest, ok)
         d = self.edge_bulge[f]
         w0, w1, w2 = w.T
         d0, d1, d2 = d.T
         heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
         # dh/dw_i chained with the barycentric gradients in the face plane.
         dh = np.column_stack([d0 * w1 + d2 * w2, d0 * w0 + d1 * w2, d1 * w1 + d2 * w0])
-        gradients = np.einsum("ni,nij->nj", dh, self._face_table()["grads"][f])
+        gradients = np.einsum("ni,nij->nj", dh, grads)
         return heights, gradients
 
     def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
@@ -273,7 +274,7 @@ class AabbSurface:
             raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
         tri = mesh.faces[f]  # (n, 3)
         w = self._barycentric(P, f)
-        normals = np.einsum("ni,nij->nj", w, self._face_table()["corner_normals"][f])
+        normals = np.einsum("ni,nij->nj", w, self._corner_normals()[f])
         norm = np.linalg.norm(normals, axis=1)
         bad = ~(norm > 1e-12)
         if bad.any():
@@ -290,56 +291,57 @@ class AabbSurface:
             normals /= norm[:, None]
         return np.nan_to_num(normals, nan=0.0)
 
-    def _face_table(self) -> dict:
-        """Per-face corners, degeneracy and barycentric gradients, computed on first use.
+    def _corner_normals(self) -> np.ndarray:
+        """The mesh's corner normals (:func:`corner_normals`), computed on first use."""
+        return corner_normals(self.mesh)
 
-        (Not at load time: the cached load stays fast, and only registrations need them.)
+    def _face_rows(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-face degeneracy ``(n,)`` and barycentric gradients ``(n, 3, 3)`` of faces
+        ``f``, each face's computed on its first query and kept.
+
+        (Not at load time, nor for every face at once: a recognition queries a few
+        thousand of a model's faces, and tabulating all 80,000 of a bundled object took
+        about 25 ms per model. Every face's row is computed by the same row-wise
+        arithmetic whichever faces are asked with it: the same bits as a whole table,
+        ``tests/test_index.py`` checks.)
         """
         table = self.__dict__.get("_faces_cache")
         if table is None:
-            V, F = self.mesh.vertices, self.mesh.faces
-            a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-            v0, v1 = b - a, c - a
-            d00 = np.einsum("ij,ij->i", v0, v0)
-            d01 = np.einsum("ij,ij->i", v0, v1)
-            d11 = np.einsum("ij,ij->i", v1, v1)
-            den = d00 * d11 - d01 * d01
-            ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
-            # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex
-            # i, counter-clockwise (zero on degenerate faces).
-            n = _cross(v0, v1)
-            nn = np.einsum("ij,ij->i", n, n)
-            inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
-            grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
-            grads *= inv[:, :, None]
-            table = {
-                "a": a,
-                "b": b,
-                "c": c,
-                "ok": ok,
-                "grads": grads,
-                "corner_normals": corner_normals(self.mesh),
-            }
-            self.__dict__["_faces_cache"] = table
-        return table
+            with self._aabb_lock:
+                table = self.__dict__.get("_faces_cache")
+                if table is None:
+                    m = len(self.mesh.faces)
+                    table = {
+                        "done": np.zeros(m, dtype=bool),
+                        "ok": np.zeros(m, dtype=bool),
+                        "grads": np.zeros((m, 3, 3)),
+                    }
+                    self.__dict__["_faces_cache"] = table
+        new = f[~table["done"][f]]
+        if new.size:
+            with self._aabb_lock:
+                new = np.unique(new[~table["done"][new]])
+                if new.size:
+                    ok, grads = _face_gradients(self.mesh.vertices, self.mesh.faces[new])
+                    table["ok"][new] = ok
+                    table["grads"][new] = grads
+                    table["done"][new] = True  # after the rows: a reader sees them whole
+        return table["ok"][f], table["grads"][f]
 
     def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
 
-        libigl's ``barycentric_coordinates`` on the tabulated corners (measured, timeit
+        libigl's ``barycentric_coordinates`` on the faces' corners (measured, timeit
         median of 15 repeats on a 20480-face sphere: 12.2 us for 64 points and 81.5 us for
         1000, against 16.4 us and 110 us for the former hand-written formula on
         tabulated per-face dot products, and 32 us / 135 us for trimesh's
         ``points_to_barycentric``). Degenerate faces get 1/3 each.
         """
-        t = self._face_table()
+        f = np.asarray(f, dtype=np.int64)
         if len(f) == 0:
             return np.zeros((0, 3))
-        p = np.ascontiguousarray(p, dtype=np.float64)
-        w = igl.barycentric_coordinates(p, t["a"][f], t["b"][f], t["c"][f])
-        w[~t["ok"][f]] = 1.0 / 3.0
-        w = np.clip(w, 0.0, None)
-        return w / w.sum(axis=1, keepdims=True)
+        ok, _ = self._face_rows(f)
+        return _clipped_barycentric(self.mesh.vertices, self.mesh.faces[f], p, ok)
 
 
 #: Queries of at least this many points are sorted along a Morton curve first (the sort
@@ -373,6 +375,39 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
     v = (v | (v << np.uint32(8))) & np.uint32(0x0300F00F)
     v = (v | (v << np.uint32(4))) & np.uint32(0x030C30C3)
     return (v | (v << np.uint32(2))) & np.uint32(0x09249249)
+
+
+def _face_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each face of ``F`` is non-degenerate ``(n,)``, and the gradients of its
+    barycentric coordinates in its plane ``(n, 3, 3)`` (zero on degenerate faces).
+
+    Row-wise arithmetic only: a face's answer does not depend on the others asked.
+    """
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    v0, v1 = b - a, c - a
+    d00 = np.einsum("ij,ij->i", v0, v0)
+    d01 = np.einsum("ij,ij->i", v0, v1)
+    d11 = np.einsum("ij,ij->i", v1, v1)
+    den = d00 * d11 - d01 * d01
+    ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
+    # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex i,
+    # counter-clockwise (zero on degenerate faces).
+    n = _cross(v0, v1)
+    nn = np.einsum("ij,ij->i", n, n)
+    inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
+    grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
+    grads *= inv[:, :, None]
+    return ok, grads
+
+
+def _clipped_barycentric(V: np.ndarray, tri: np.ndarray, p, ok: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (n, 3) of points ``p`` in triangles ``tri`` (n, 3) of
+    ``V``, clipped to them; 1/3 each where not ``ok`` (degenerate)."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    w = igl.barycentric_coordinates(p, V[tri[:, 0]], V[tri[:, 1]], V[tri[:, 2]])
+    w[~ok] = 1.0 / 3.0
+    w = np.clip(w, 0.0, None)
+    return w / w.sum(axis=1, keepdims=True)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
