@@ -762,11 +762,12 @@ def test_face_rows_on_demand_are_the_whole_tables_bits():
     m = len(data.faces)
     for size in (1, 5, 200, m):
         f = rng.integers(0, m, size)
-        ok, grads = surface._face_rows(f)
+        t = surface._face_table(f)
+        ok, grads = t["ok"][f], t["grads"][f]
         assert np.array_equal(ok, ok_all[f])
         assert np.array_equal(grads, grads_all[f])
     # every face now asked once at least (the last query had m draws: most of them)
-    ok, grads = surface._face_rows(np.arange(m))
+    grads = surface._face_table(np.arange(m))["grads"]
     assert np.array_equal(grads, grads_all)
     # heights and gradients: the same whichever faces a surface saw first
     p = rng.normal(size=(300, 3))

@@ -226,15 +226,15 @@ class AabbSurface:
             Gradient of the height as the point moves in its face's plane.
         """
         f = np.asarray(face, dtype=np.int64)
-        ok, grads = self._face_rows(f)
-        w = _clipped_barycentric(self.mesh.vertices, self.mesh.faces[f], closest, ok)
+        t = self._face_table(f)
+        w = _clipped_barycentric(t, f, closest)
         d = self.edge_bulge[f]
         w0, w1, w2 = w.T
         d0, d1, d2 = d.T
         heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
         # dh/dw_i chained with the barycentric gradients in the face plane.
         dh = np.column_stack([d0 * w1 + d2 * w2, d0 * w0 + d1 * w2, d1 * w1 + d2 * w0])
-        gradients = np.einsum("ni,nij->nj", dh, grads)
+        gradients = np.einsum("ni,nij->nj", dh, t["grads"][f])
         return heights, gradients
 
     def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
@@ -295,38 +295,41 @@ class AabbSurface:
         """The mesh's corner normals (:func:`corner_normals`), computed on first use."""
         return corner_normals(self.mesh)
 
-    def _face_rows(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per-face degeneracy ``(n,)`` and barycentric gradients ``(n, 3, 3)`` of faces
-        ``f``, each face's computed on its first query and kept.
+    def _face_table(self, f: np.ndarray) -> dict:
+        """Per-face corners ``a``, ``b``, ``c`` (m, 3), degeneracy ``ok`` (m,) and
+        barycentric gradients ``grads`` (m, 3, 3), with the rows of faces ``f`` filled.
 
-        (Not at load time, nor for every face at once: a recognition queries a few
-        thousand of a model's faces, and tabulating all 80,000 of a bundled object took
-        about 25 ms per model. Every face's row is computed by the same row-wise
-        arithmetic whichever faces are asked with it: the same bits as a whole table,
-        ``tests/test_index.py`` checks.)
+        The corners are gathered on first use; the degeneracy and gradients of a face
+        are computed on its first query and kept (not for every face at once: a
+        recognition queries a few thousand of a model's faces, and tabulating all 80,000
+        of a bundled object took about 25 ms per model). A face's row is computed by the
+        same row-wise arithmetic whichever faces are asked with it: the same bits as a
+        whole table, ``tests/test_index.py`` checks.
         """
         table = self.__dict__.get("_faces_cache")
         if table is None:
             with self._aabb_lock:
                 table = self.__dict__.get("_faces_cache")
                 if table is None:
-                    m = len(self.mesh.faces)
+                    V, F = self.mesh.vertices, self.mesh.faces
                     table = {
-                        "done": np.zeros(m, dtype=bool),
-                        "ok": np.zeros(m, dtype=bool),
-                        "grads": np.zeros((m, 3, 3)),
+                        "a": V[F[:, 0]],
+                        "b": V[F[:, 1]],
+                        "c": V[F[:, 2]],
+                        "done": np.zeros(len(F), dtype=bool),
+                        "ok": np.zeros(len(F), dtype=bool),
+                        "grads": np.zeros((len(F), 3, 3)),
                     }
                     self.__dict__["_faces_cache"] = table
-        new = f[~table["done"][f]]
-        if new.size:
+        if not table["done"][f].all():
             with self._aabb_lock:
-                new = np.unique(new[~table["done"][new]])
+                new = np.unique(f[~table["done"][f]])
                 if new.size:
                     ok, grads = _face_gradients(self.mesh.vertices, self.mesh.faces[new])
                     table["ok"][new] = ok
                     table["grads"][new] = grads
                     table["done"][new] = True  # after the rows: a reader sees them whole
-        return table["ok"][f], table["grads"][f]
+        return table
 
     def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
@@ -340,8 +343,7 @@ class AabbSurface:
         f = np.asarray(f, dtype=np.int64)
         if len(f) == 0:
             return np.zeros((0, 3))
-        ok, _ = self._face_rows(f)
-        return _clipped_barycentric(self.mesh.vertices, self.mesh.faces[f], p, ok)
+        return _clipped_barycentric(self._face_table(f), f, p)
 
 
 #: Queries of at least this many points are sorted along a Morton curve first (the sort
@@ -400,12 +402,13 @@ def _face_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return ok, grads
 
 
-def _clipped_barycentric(V: np.ndarray, tri: np.ndarray, p, ok: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates (n, 3) of points ``p`` in triangles ``tri`` (n, 3) of
-    ``V``, clipped to them; 1/3 each where not ``ok`` (degenerate)."""
+def _clipped_barycentric(table: dict, f: np.ndarray, p) -> np.ndarray:
+    """Barycentric coordinates (n, 3) of points ``p`` in faces ``f`` of a face table
+    (``AabbSurface._face_table``, rows of ``f`` filled), clipped to them; 1/3 each on a
+    degenerate face."""
     p = np.ascontiguousarray(p, dtype=np.float64)
-    w = igl.barycentric_coordinates(p, V[tri[:, 0]], V[tri[:, 1]], V[tri[:, 2]])
-    w[~ok] = 1.0 / 3.0
+    w = igl.barycentric_coordinates(p, table["a"][f], table["b"][f], table["c"][f])
+    w[~table["ok"][f]] = 1.0 / 3.0
     w = np.clip(w, 0.0, None)
     return w / w.sum(axis=1, keepdims=True)
 
