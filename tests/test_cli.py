@@ -254,3 +254,31 @@ def test_index_takes_the_folder_as_an_argument(tmp_path, capsys):
     assert main(["index", str(folder), "--models", "surfaces", "--cache-dir", str(cache)]) == 2
     err = capsys.readouterr().err
     assert "give the folder once" in err
+
+
+@pytest.mark.parametrize(
+    ("command", "preset", "want"),
+    [
+        ("next-touch", {}, "1"),
+        ("next-touch", {"OMP_NUM_THREADS": "2"}, None),
+        ("next-touch", {"OPENBLAS_NUM_THREADS": "2"}, "2"),
+        ("recognize", {}, None),
+    ],
+)
+def test_next_touch_starts_one_blas_thread_unless_told(command, preset, want):
+    # A new interpreter (numpy not yet imported): next-touch asks OpenBLAS for one thread
+    # when no thread variable is set, and leaves the user's choice and other commands alone.
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+    }
+    env.update(preset)
+    code = (
+        "import os; from meshrec.app.cli import _load_core; "
+        f"_load_core({command!r}); print(os.environ.get('OPENBLAS_NUM_THREADS'))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == str(want)

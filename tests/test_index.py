@@ -412,16 +412,16 @@ def test_interpolated_normals_fall_back_on_the_face_normal_where_the_blend_vanis
     # the face's own normal is used (computed here from its corners); elsewhere the
     # blend, normalised, as np.linalg.norm would (the same bits).
     from meshrec.model.mesh import MeshData
-    from meshrec.model.surface import AabbSurface
+    from meshrec.model.surface import AabbSurface, corner_normals
 
     V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.2]])
     F = np.array([[0, 1, 2], [1, 3, 2]])
-    surface = AabbSurface.from_mesh(MeshData.from_arrays(V, F), 30.0)
-    table = surface._face_table()
-    cn = table["corner_normals"].copy()
+    mesh = MeshData.from_arrays(V, F)
+    surface = AabbSurface.from_mesh(mesh, 30.0)
+    cn = corner_normals(mesh).copy()
     cn[0, 0] = [0.0, 0.6, 0.8]
     cn[0, 1] = [0.0, -0.6, -0.8]
-    table["corner_normals"] = cn
+    mesh.__dict__["_corner_normals"] = cn  # the cache corner_normals keeps on the mesh
     p = np.array([[0.5, 0.0, 0.0], [0.2, 0.2, 0.0], [0.6, 0.6, 0.05]])
     f = np.array([0, 0, 1])
     got = surface.interpolated_normals(p, f)
@@ -770,3 +770,34 @@ def test_another_surface_backend_can_replace_the_default(sphere_index):
     assert backend.calls == 1
     with pytest.raises(TypeError, match="surface must be an AabbSurface to be cached"):
         other.to_record()
+
+
+def test_face_rows_on_demand_are_the_whole_tables_bits():
+    # Twin: every face's degeneracy and barycentric gradients computed at once for the
+    # whole mesh; the surface computes them face by face as queries reach them, in any
+    # order and any company, and must give the same bits (and so the same smooth heights).
+    from meshrec.model.surface import _face_gradients
+
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    data = MeshData.from_arrays(mesh.vertices, mesh.faces)
+    ok_all, grads_all = _face_gradients(data.vertices, data.faces)
+    rng = np.random.default_rng(12)
+    surface = AabbSurface.from_mesh(data, defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG)
+    twin = AabbSurface.from_mesh(data, defaults.SMOOTH_MAX_NORMAL_ANGLE_DEG)
+    m = len(data.faces)
+    for size in (1, 5, 200, m):
+        f = rng.integers(0, m, size)
+        t = surface._face_table(f)
+        ok, grads = t["ok"][f], t["grads"][f]
+        assert np.array_equal(ok, ok_all[f])
+        assert np.array_equal(grads, grads_all[f])
+    # every face now asked once at least (the last query had m draws: most of them)
+    grads = surface._face_table(np.arange(m))["grads"]
+    assert np.array_equal(grads, grads_all)
+    # heights and gradients: the same whichever faces a surface saw first
+    p = rng.normal(size=(300, 3))
+    _, closest, face = surface.closest_points(p)
+    got = twin.smooth_offsets_and_gradients(closest[::-1], face[::-1])
+    want = surface.smooth_offsets_and_gradients(closest, face)
+    assert np.array_equal(got[0][::-1], want[0])
+    assert np.array_equal(got[1][::-1], want[1])

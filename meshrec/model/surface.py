@@ -226,14 +226,15 @@ class AabbSurface:
             Gradient of the height as the point moves in its face's plane.
         """
         f = np.asarray(face, dtype=np.int64)
-        w = self._barycentric(np.asarray(closest, dtype=np.float64), f)
+        t = self._face_table(f)
+        w = _clipped_barycentric(t, f, closest)
         d = self.edge_bulge[f]
         w0, w1, w2 = w.T
         d0, d1, d2 = d.T
         heights = w0 * w1 * d0 + w1 * w2 * d1 + w2 * w0 * d2
         # dh/dw_i chained with the barycentric gradients in the face plane.
         dh = np.column_stack([d0 * w1 + d2 * w2, d0 * w0 + d1 * w2, d1 * w1 + d2 * w0])
-        gradients = np.einsum("ni,nij->nj", dh, self._face_table()["grads"][f])
+        gradients = np.einsum("ni,nij->nj", dh, t["grads"][f])
         return heights, gradients
 
     def interpolated_normals(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
@@ -271,15 +272,15 @@ class AabbSurface:
         m = len(mesh.faces)
         if f.size and (f.min() < 0 or f.max() >= m):
             raise ValueError(f"face must index faces 0..{m - 1}, got range {f.min()}..{f.max()}")
+        tri = mesh.faces[f]  # (n, 3)
         w = self._barycentric(P, f)
-        normals = np.einsum("ni,nij->nj", w, self._face_table()["corner_normals"][f])
+        normals = np.einsum("ni,nij->nj", w, self._corner_normals()[f])
         # np.linalg.norm's own formula for real rows (the same bits, without its dispatch:
         # a chart evaluation of the searches asks one point at a time)
         norm = np.sqrt(np.add.reduce(normals * normals, axis=1))
         bad = ~(norm > 1e-12)
         if bad.any():
-            tri = mesh.faces[f[bad]]  # (k, 3)
-            a, b, c = (mesh.vertices[tri[:, i]] for i in range(3))
+            a, b, c = (mesh.vertices[tri[bad, i]] for i in range(3))
             fn = np.cross(b - a, c - a)
             normals[bad] = fn
             norm[bad] = np.linalg.norm(fn, axis=1)
@@ -292,58 +293,59 @@ class AabbSurface:
             normals /= norm[:, None]
         return np.nan_to_num(normals, nan=0.0)
 
-    def _face_table(self) -> dict:
-        """Per-face corners, degeneracy and barycentric gradients, computed on first use.
+    def _corner_normals(self) -> np.ndarray:
+        """The mesh's corner normals (:func:`corner_normals`), computed on first use."""
+        return corner_normals(self.mesh)
 
-        (Not at load time: the cached load stays fast, and only registrations need them.)
+    def _face_table(self, f: np.ndarray) -> dict:
+        """Per-face corners ``a``, ``b``, ``c`` (m, 3), degeneracy ``ok`` (m,) and
+        barycentric gradients ``grads`` (m, 3, 3), with the rows of faces ``f`` filled.
+
+        The corners are gathered on first use; the degeneracy and gradients of a face
+        are computed on its first query and kept (not for every face at once: a
+        recognition queries a few thousand of a model's faces, and tabulating all 80,000
+        of a bundled object took about 25 ms per model). A face's row is computed by the
+        same row-wise arithmetic whichever faces are asked with it: the same bits as a
+        whole table, ``tests/test_index.py`` checks.
         """
         table = self.__dict__.get("_faces_cache")
         if table is None:
-            V, F = self.mesh.vertices, self.mesh.faces
-            a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-            v0, v1 = b - a, c - a
-            d00 = np.einsum("ij,ij->i", v0, v0)
-            d01 = np.einsum("ij,ij->i", v0, v1)
-            d11 = np.einsum("ij,ij->i", v1, v1)
-            den = d00 * d11 - d01 * d01
-            ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
-            # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex
-            # i, counter-clockwise (zero on degenerate faces).
-            n = _cross(v0, v1)
-            nn = np.einsum("ij,ij->i", n, n)
-            inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
-            grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
-            grads *= inv[:, :, None]
-            table = {
-                "a": a,
-                "b": b,
-                "c": c,
-                "ok": ok,
-                "all_ok": bool(ok.all()),
-                "grads": grads,
-                "corner_normals": corner_normals(self.mesh),
-            }
-            self.__dict__["_faces_cache"] = table
+            with self._aabb_lock:
+                table = self.__dict__.get("_faces_cache")
+                if table is None:
+                    V, F = self.mesh.vertices, self.mesh.faces
+                    table = {
+                        "a": V[F[:, 0]],
+                        "b": V[F[:, 1]],
+                        "c": V[F[:, 2]],
+                        "done": np.zeros(len(F), dtype=bool),
+                        "ok": np.zeros(len(F), dtype=bool),
+                        "grads": np.zeros((len(F), 3, 3)),
+                    }
+                    self.__dict__["_faces_cache"] = table
+        if not table["done"][f].all():
+            with self._aabb_lock:
+                new = np.unique(f[~table["done"][f]])
+                if new.size:
+                    ok, grads = _face_gradients(self.mesh.vertices, self.mesh.faces[new])
+                    table["ok"][new] = ok
+                    table["grads"][new] = grads
+                    table["done"][new] = True  # after the rows: a reader sees them whole
         return table
 
     def _barycentric(self, p: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Barycentric coordinates (n, 3) of points ``p`` in faces ``f``, clipped to them.
 
-        libigl's ``barycentric_coordinates`` on the tabulated corners (measured, timeit
+        libigl's ``barycentric_coordinates`` on the faces' corners (measured, timeit
         median of 15 repeats on a 20480-face sphere: 12.2 us for 64 points and 81.5 us for
         1000, against 16.4 us and 110 us for the former hand-written formula on
         tabulated per-face dot products, and 32 us / 135 us for trimesh's
         ``points_to_barycentric``). Degenerate faces get 1/3 each.
         """
-        t = self._face_table()
+        f = np.asarray(f, dtype=np.int64)
         if len(f) == 0:
             return np.zeros((0, 3))
-        p = np.ascontiguousarray(p, dtype=np.float64)
-        w = igl.barycentric_coordinates(p, t["a"][f], t["b"][f], t["c"][f])
-        if not t["all_ok"]:
-            w[~t["ok"][f]] = 1.0 / 3.0
-        w = np.clip(w, 0.0, None)
-        return w / w.sum(axis=1, keepdims=True)
+        return _clipped_barycentric(self._face_table(f), f, p)
 
 
 #: Queries of at least this many points are sorted along a Morton curve first (the sort
@@ -377,6 +379,42 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
     v = (v | (v << np.uint32(8))) & np.uint32(0x0300F00F)
     v = (v | (v << np.uint32(4))) & np.uint32(0x030C30C3)
     return (v | (v << np.uint32(2))) & np.uint32(0x09249249)
+
+
+def _face_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each face of ``F`` is non-degenerate ``(n,)``, and the gradients of its
+    barycentric coordinates in its plane ``(n, 3, 3)`` (zero on degenerate faces).
+
+    Row-wise arithmetic only: a face's answer does not depend on the others asked.
+    """
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    v0, v1 = b - a, c - a
+    d00 = np.einsum("ij,ij->i", v0, v0)
+    d01 = np.einsum("ij,ij->i", v0, v1)
+    d11 = np.einsum("ij,ij->i", v1, v1)
+    den = d00 * d11 - d01 * d01
+    ok = den > 1e-300 * np.maximum(d00 * d11, 1e-300)
+    # grad w_i = n x e_i / |n|^2 with n = v0 x v1 and e_i the edge opposite vertex i,
+    # counter-clockwise (zero on degenerate faces).
+    n = _cross(v0, v1)
+    nn = np.einsum("ij,ij->i", n, n)
+    inv = np.where(ok & (nn > 0), 1.0 / np.where(nn > 0, nn, 1.0), 0.0)[:, None]
+    grads = np.stack([_cross(n, c - b), _cross(n, a - c), _cross(n, b - a)], axis=1)
+    grads *= inv[:, :, None]
+    return ok, grads
+
+
+def _clipped_barycentric(table: dict, f: np.ndarray, p) -> np.ndarray:
+    """Barycentric coordinates (n, 3) of points ``p`` in faces ``f`` of a face table
+    (``AabbSurface._face_table``, rows of ``f`` filled), clipped to them; 1/3 each on a
+    degenerate face."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    w = igl.barycentric_coordinates(p, table["a"][f], table["b"][f], table["c"][f])
+    bad = ~table["ok"][f]
+    if bad.any():  # most meshes have no degenerate face: skip the masked write
+        w[bad] = 1.0 / 3.0
+    w = np.clip(w, 0.0, None)
+    return w / w.sum(axis=1, keepdims=True)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
