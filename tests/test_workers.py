@@ -379,7 +379,7 @@ def _cascade_touches(lib):
     """On a: b pruned by the cascade after its first stages; on b: a model rejected by the
     lookup; on b: models pruned by the screen; and the last two together."""
     a, b_rejects, b_screens = (
-        _scan(lib, "a", _after_first_stages, 3),
+        _scan(lib, "a", _after_first_stages, 0),
         _scan(lib, "b", _rejected, 4),
         _scan(lib, "b", _by_screen, 5),
     )
