@@ -128,19 +128,8 @@ def _started_bounds():
 
 
 def _bound_slack(library, touches, slacks, out: list[str]) -> None:
-    calls = []
     original = brackets.bounded_grid_errors
-
-    def spy(model, origins, local_points, steps, **kwargs):
-        calls.append((model, origins, local_points, steps, kwargs))
-        return original(model, origins, local_points, steps, **kwargs)
-
-    brackets.bounded_grid_errors = spy
-    try:
-        for touch in touches:
-            meshrec.recognize(touch, library)
-    finally:
-        brackets.bounded_grid_errors = original
+    calls = _spied_grids(library, touches)
     started = _started_bounds()
     whole = now = 0
     needed = np.zeros(len(slacks))
@@ -167,12 +156,12 @@ def _bound_slack(library, touches, slacks, out: list[str]) -> None:
 
 
 def _spied_grids(library, touches) -> list:
-    """The phi grids' arguments of the touches' recognitions."""
+    """The phi grids' arguments of the touches' recognitions (keyword arguments last)."""
     calls = []
     original = brackets.bounded_grid_errors
 
     def spy(model, origins, local_points, steps, **kwargs):
-        calls.append((model, origins, local_points, steps))
+        calls.append((model, origins, local_points, steps, kwargs))
         return original(model, origins, local_points, steps, **kwargs)
 
     brackets.bounded_grid_errors = spy
@@ -224,7 +213,7 @@ def _grid_prototype(library, touches, nodes: int, out: list[str]) -> None:
     t_exact = t_grid = 0.0
     errors = {"unsigned": [], "signed": []}
     n = 0
-    for model, origins, local_points, steps in calls:
+    for model, origins, local_points, steps, _ in calls:
         P = bounded.placed_grid(origins, np.array(local_points), steps).reshape(-1, 3)
         c0 = time.process_time()
         exact = point_distances(model, P)
