@@ -213,8 +213,10 @@ def recognize(
         The ranking (most probable first) with the calibrated scores and the verdict
         (recognised, ambiguous or unknown; see :mod:`meshrec.recognition.scoring`). When
         even the best fit is worse than the noise allows, every model is registered again
-        with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict.
-        Every warning raised inside is passed on as usual and its text kept in
+        with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict;
+        one touch that still fits nothing, once more with up to
+        ``defaults.LOOKUP_DENSE_CANDIDATES`` candidates per model (each model keeps its best
+        fit of all). Every warning raised inside is passed on as usual and its text kept in
         ``Recognition.warnings``, with a ResolutionWarning for each plausible (or best)
         model too coarse for reliable answers. With several touches, ``T_model_touch`` maps their
         common frame to the model, and touches that no model fits at one pose (the object
