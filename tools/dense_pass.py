@@ -26,6 +26,7 @@ from meshrec import defaults
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import families  # the families' touches (tools/families.py)
+from _report import finish  # tools/_report.py
 
 _CAUTION = "candidates"  # the dense pass's words in the widened caution
 
@@ -101,11 +102,7 @@ def main(argv=None) -> int:
         changed += [r for r in rows if r[3][:2] != r[4][:2]]
     lines += ["", "Changed answers (object, seed: without -> with):", ""]
     lines += [f"- {r[0]}, {r[1]}: {r[3][0]} ({r[3][1]}) -> {r[4][0]} ({r[4][1]})" for r in changed]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        args.out.write_text(text)
-    return 0
+    return finish(lines, args.out)
 
 
 if __name__ == "__main__":

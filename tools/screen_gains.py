@@ -31,6 +31,9 @@ import numpy as np
 import meshrec
 from meshrec import bench, defaults
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import finish  # tools/_report.py
+
 
 def _touches(library, names, n_touches, kind):
     out = []
@@ -159,11 +162,7 @@ def main(argv=None) -> int:
             f"{sum(r['pruned'] for r in rows)} of {sum(r['models'] for r in rows)} pairs, "
             f"close ones pruned: {sum(r['pruned_close'] for r in rows)}.\n"
         )
-    text = "\n".join(out) + "\n"
-    print(text)
-    if args.out:
-        args.out.write_text(text)
-    return 0
+    return finish(out, args.out)
 
 
 if __name__ == "__main__":

@@ -26,6 +26,9 @@ from pathlib import Path
 import meshrec
 from meshrec import bench, defaults
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import finish  # tools/_report.py
+
 
 def _answer(rec) -> tuple:
     best = rec.best
@@ -100,11 +103,7 @@ def main(argv=None) -> int:
             f"{med_b:.1f} s with the screen ({med_b / n:.3f} s per model); same answers "
             f"{sum(r['same'] for r in rows)}/{len(rows)}.\n"
         )
-    text = "\n".join(out) + "\n"
-    print(text)
-    if args.out:
-        args.out.write_text(text)
-    return 0
+    return finish(out, args.out)
 
 
 if __name__ == "__main__":
