@@ -90,6 +90,17 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert rec.widened_seconds > 0
     assert any("widened" in w for w in rec.warnings)
     assert any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
+    # no paper surface has a site this curved even in the widened window, so the dense
+    # pass skips them all: a denser look at the same window rejects them too
+    assert all(r.rejected for r in rec.ranking)
+    for m in surfaces:
+        dense = meshrec.register(
+            small_sphere_touch,
+            m,
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
+        )
+        assert dense.rejected
 
 
 def test_each_model_keeps_its_best_fit_of_the_harder_looks(objects):

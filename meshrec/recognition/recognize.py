@@ -716,20 +716,26 @@ def _widened(
 
     With several touches, each is registered alone with the wider window; ``fits`` (the
     joint fits, by model) is updated in place where the wider pass fits better. One touch
-    may look at up to ``max_candidates`` candidates per model (None: the default number).
+    may look at up to ``max_candidates`` candidates per model (None: the default number);
+    with a cap, the models ``rec`` holds rejected (the widened window held none of their
+    sites, and a denser look at the same window cannot find one) are kept as they are.
     """
     merged = []
     wides = {}
     if len(rec.touches) == 1:
+        # A denser look at the widened window cannot help a model whose widened lookup
+        # found no site at all (rejected again): only the others are registered.
+        todo = [reg for reg in rec.ranking if max_candidates is None or not reg.rejected]
         regs = run.register_each(
             rec.touch,
-            [models[reg.model] for reg in rec.ranking],
+            [models[reg.model] for reg in todo],
             rec.geometry,
             method,
             lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
             max_candidates=max_candidates,
         )
-        wides = {reg.model: wide for reg, wide in zip(rec.ranking, regs, strict=True)}
+        wides = {reg.model: wide for reg, wide in zip(todo, regs, strict=True)}
+        wides.update({reg.model: reg for reg in rec.ranking if reg.model not in wides})
     for reg in rec.ranking:
         if len(rec.touches) > 1:
             fit = register_touches(
