@@ -39,7 +39,9 @@ def _run(library, names, seeds):
     rows = []
     for seed in seeds:
         for name in names:
-            touch = families._touches(lambda n: families._YCB / f"{n}.obj", name, 1e-4, seed)[0]
+            touch = families.family_touches(
+                lambda n: families.YCB / f"{n}.obj", name, 1e-4, seed
+            )[0]
             t0 = time.process_time()
             new = meshrec.recognize(touch, library)
             t_new = time.process_time() - t0
@@ -83,7 +85,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     warnings.simplefilter("ignore")
-    library = meshrec.ModelLibrary.from_folder(families._YCB)
+    library = meshrec.ModelLibrary.from_folder(families.YCB)
     names = [n for n in library.names if n not in families.YCB_BOXES]
     lines = [
         "# The dense pass of one touch, paired (YCB curved)\n",

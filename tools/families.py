@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import make_parts  # the builders of the real shapes (tools/make_parts.py)
 
 _REPO = Path(__file__).resolve().parent.parent
-_YCB = _REPO.parent / "shared" / "data" / "ycb"
+YCB = _REPO.parent / "shared" / "data" / "ycb"
 YCB_BOXES = ("cracker_box", "foam_brick", "gelatin_box", "potted_meat_can")
 POINTS = 61
 TOUCHES = 3
@@ -108,7 +108,7 @@ class Outcome:
         return self.verdict == "recognised" and self.best != self.truth
 
 
-def _touches(real, name: str, noise: float, seed: int):
+def family_touches(real, name: str, noise: float, seed: int):
     """Three touches of one object at one random pose (a common world frame)."""
     rng = np.random.default_rng(seed)
     mesh = real(name)
@@ -175,7 +175,7 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="one trial of at most 4 objects each")
     p.add_argument("--trials", type=int, default=2, help="trials per object (default 2)")
     p.add_argument("--seed", type=int, default=0, help="first seed")
-    p.add_argument("--ycb", type=Path, default=_YCB, help="folder of the YCB scans")
+    p.add_argument("--ycb", type=Path, default=YCB, help="folder of the YCB scans")
     p.add_argument("--only", nargs="*", default=None, help="families to run (default all)")
     p.add_argument("--out", type=Path, default=_REPO / "reports" / "families.md")
     args = p.parse_args(argv)
@@ -209,7 +209,7 @@ def main(argv=None) -> int:
         one, three = [], []
         for name in names:
             for k in range(trials):
-                touches = _touches(fam.real, name, fam.noise, args.seed + k)
+                touches = family_touches(fam.real, name, fam.noise, args.seed + k)
                 a = _recognise(touches[:1], library, name)
                 b = _recognise(touches, library, name)
                 one.append(a)
