@@ -262,12 +262,13 @@ def test_index_takes_the_folder_as_an_argument(tmp_path, capsys):
         ("next-touch", {}, "1"),
         ("next-touch", {"OMP_NUM_THREADS": "2"}, None),
         ("next-touch", {"OPENBLAS_NUM_THREADS": "2"}, "2"),
-        ("recognize", {}, None),
+        ("recognize", {}, "1"),
+        ("serve", {"GOTO_NUM_THREADS": "2"}, None),
     ],
 )
-def test_next_touch_starts_one_blas_thread_unless_told(command, preset, want):
-    # A new interpreter (numpy not yet imported): next-touch asks OpenBLAS for one thread
-    # when no thread variable is set, and leaves the user's choice and other commands alone.
+def test_commands_start_one_blas_thread_unless_told(command, preset, want):
+    # A new interpreter (numpy not yet imported): every command asks OpenBLAS for one
+    # thread when no thread variable is set, and leaves the user's choice alone.
     env = {
         k: v
         for k, v in os.environ.items()

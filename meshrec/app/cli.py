@@ -484,14 +484,12 @@ def _load_core(command: str | None = None) -> None:
     import signal
     import threading
 
-    if (
-        command == "next-touch"
-        and "numpy" not in sys.modules
-        and not any(os.environ.get(k) for k in _BLAS_THREAD_VARIABLES)
-    ):
-        # One BLAS thread unless the user chose: a next-touch's products are of (n, 3)
-        # arrays, where OpenBLAS's thread pool only costs its start (about 0.07 s of CPU
-        # time at import, measured; the same answers, compared on the bundled objects).
+    if "numpy" not in sys.modules and not any(os.environ.get(k) for k in _BLAS_THREAD_VARIABLES):
+        # One BLAS thread unless the user chose, for every command: meshrec's products are
+        # of (n, 3) arrays and small systems, where OpenBLAS's thread pool only costs its
+        # start (about 0.07 s of CPU time at import, measured on next-touch; the same
+        # answers, compared on the bundled objects) and, with --workers or a service's
+        # concurrent requests, competes with the processes and threads for the cores.
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
     if threading.current_thread() is not threading.main_thread():
         previous = None
