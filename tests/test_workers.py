@@ -343,7 +343,7 @@ def test_local_processes_see_the_models_through_the_probe_tip(library, parallel_
 @pytest.fixture
 def screened_small(monkeypatch):
     """The screen and parallel runs on three models, the screen with one leader: then, on
-    the touches of :func:`_cascade_touches`, the screen prunes, the cascade prunes after
+    the touches of :func:`cascade_cases`, the screen prunes, the cascade prunes after
     the first stages and the lookup rejects models (the thresholds are for speed, not
     correctness; all the decisions are taken in the caller's process)."""
     monkeypatch.setattr(defaults, "PARALLEL_MIN_MODELS", 2)
@@ -371,19 +371,31 @@ def _scan(lib, name, branch, first: int):
         touch = meshrec.simulate_touch(lib[name], rng=seed).touch
         rec = meshrec.recognize(touch, lib)
         if rec.best is not None and rec.best.model == name and branch(rec.ranking):
-            return touch
+            return touch, rec
     pytest.fail(f"no touch on {name!r} (seeds {first} to {first + 39}) takes {branch.__name__}")
 
 
-def _cascade_touches(lib):
-    """On a: b pruned by the cascade after its first stages; on b: a model rejected by the
-    lookup; on b: models pruned by the screen; and the last two together."""
-    a, b_rejects, b_screens = (
-        _scan(lib, "a", _after_first_stages, 0),
-        _scan(lib, "b", _rejected, 4),
-        _scan(lib, "b", _by_screen, 5),
-    )
-    return [a, b_rejects, b_screens, [b_rejects, b_screens]]
+@pytest.fixture(scope="module")
+def cascade_cases(library):
+    """The touches and their serial recognitions, found once for the module's tests (with
+    the settings of :func:`screened_small`): on a, b pruned by the cascade after its first
+    stages; on b, a model rejected by the lookup; on b, models pruned by the screen; and
+    the last two together."""
+    lib, _ = library
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mp.setattr(defaults, "PARALLEL_MIN_MODELS", 2)
+        mp.setattr(defaults, "SCREEN_MIN_MODELS", 2)
+        mp.setattr(defaults, "SCREEN_LEADERS", 1)
+        (a, ra), (b_rejects, rb), (b_screens, rs) = (
+            _scan(lib, "a", _after_first_stages, 0),
+            _scan(lib, "b", _rejected, 4),
+            _scan(lib, "b", _by_screen, 5),
+        )
+        both = [b_rejects, b_screens]
+        touches = [a, b_rejects, b_screens, both]
+        serial = [ra, rb, rs, meshrec.recognize(both, lib)]
+    return touches, serial
 
 
 def _same_cascade(a, b):
@@ -402,12 +414,13 @@ def _cascade_exercised(recs):
 
 
 @pytest.mark.slow
-def test_local_processes_give_the_serial_cascades_result(library, screened_small):
+def test_local_processes_give_the_serial_cascades_result(
+    library, cascade_cases, screened_small
+):
     lib, cache = library
+    touches, serial = cascade_cases
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        touches = _cascade_touches(lib)
-        serial = [meshrec.recognize(t, lib) for t in touches]
         with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
             assert workers.mode == "processes"
             calls = []
@@ -425,12 +438,13 @@ def test_local_processes_give_the_serial_cascades_result(library, screened_small
 
 
 @pytest.mark.slow
-def test_a_dask_cluster_gives_the_serial_cascades_result(library, dask_cluster, screened_small):
+def test_a_dask_cluster_gives_the_serial_cascades_result(
+    library, dask_cluster, cascade_cases, screened_small
+):
     lib, cache = library
+    touches, serial = cascade_cases
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        touches = _cascade_touches(lib)
-        serial = [meshrec.recognize(t, lib) for t in touches]
         with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
             remote = [meshrec.recognize(t, lib, workers=workers) for t in touches]
     _cascade_exercised(serial)
