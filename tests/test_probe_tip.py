@@ -413,15 +413,16 @@ def test_the_truth_file_records_the_tip(models, tmp_path):
 @pytest.mark.slow
 def test_an_object_not_in_the_library_gets_no_tip_suggestion(tmp_path):
     """Three touches of a torus against a library of bumped spheres and ellipsoids: the
-    answer is unknown, and an offset that trims 5% of a misfit 27 times the noise is no
+    answer is unknown, and an offset that trims 9% of a misfit 33 times the noise is no
     reason to suggest a ball tip (it was before ``defaults.PROBE_OFFSET_EXPLAINED``)."""
     from scipy.spatial.transform import Rotation
 
-    from meshrec import bench
+    from meshrec import bench, defaults
+    from meshrec.recognition.probing import probe_offset
 
-    bench.write_shapes(
-        bench.shape_set(9, seed=7, families=["ellipsoid", "bumped_sphere"]), tmp_path / "look"
-    )
+    # three of the look-alikes (nine took three times as long for the same case)
+    shapes = bench.shape_set(9, seed=7, families=["ellipsoid", "bumped_sphere"])[:3]
+    bench.write_shapes(shapes, tmp_path / "look")
     torus = next(s for s in bench.shape_set(9, seed=5) if "torus" in s.name)
     bench.write_shapes([torus], tmp_path / "torus")
     cache = tmp_path / "cache"
@@ -438,3 +439,12 @@ def test_an_object_not_in_the_library_gets_no_tip_suggestion(tmp_path):
     assert rec.verdict == "unknown"
     assert not caught
     assert not any("ball tip" in w for w in rec.warnings)
+    # the case the rule is for: the offset passes the chi-squared and radius tests, and
+    # only the share of the misfit it explains keeps the warning off
+    points = np.vstack([t.points for t in touches])
+    model = library[rec.best.model]
+    radius, rms0, rms = probe_offset(points, model, rec.best.T_model_touch, rec.noise)
+    gain = len(points) * (rms0**2 - rms**2) / max(rec.noise, rms) ** 2
+    assert gain > defaults.PROBE_OFFSET_CHI2
+    assert radius > defaults.PROBE_OFFSET_MIN_NOISE * rec.noise
+    assert rms0**2 - rms**2 < defaults.PROBE_OFFSET_EXPLAINED * (rms0**2 - rec.noise**2)
