@@ -46,6 +46,22 @@ def _touches(lib):
     return [s.touch for s in sims]
 
 
+@pytest.fixture(scope="module")
+def serial_plain(library):
+    """Touches on b (one; one and two; a small sphere no model fits) and their serial
+    recognitions without the cascade, made once for the module's tests."""
+    lib, _ = library
+    one, two = _touches(lib)
+    far = meshrec.simulate_touch(
+        trimesh.creation.icosphere(subdivisions=4, radius=0.1), length=0.2, rng=5
+    ).touch  # no model fits: the widened pass runs too
+    touches = (one, [one, two], far)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = [meshrec.recognize(t, lib, cascade=False) for t in touches]
+    return touches, serial
+
+
 def _same(a, b):
     """Two recognitions agree in everything but their timings."""
     assert a.verdict == b.verdict
@@ -68,23 +84,17 @@ def _same(a, b):
 
 
 @pytest.mark.slow
-def test_local_processes_give_the_serial_result(library, parallel_small):
+def test_local_processes_give_the_serial_result(library, serial_plain, parallel_small):
     lib, cache = library
-    one, two = _touches(lib)
-    far = meshrec.simulate_touch(
-        trimesh.creation.icosphere(subdivisions=4, radius=0.1), length=0.2, rng=5
-    ).touch  # no model fits: the widened pass runs too
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        serial = [meshrec.recognize(t, lib, cascade=False) for t in (one, [one, two], far)]
+    touches, serial = serial_plain
+    one = touches[0]
     with ModelWorkers(lib, workers=2, cache_dir=cache) as workers:
         assert workers.mode == "processes"
         assert workers.workers == 2
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             parallel = [
-                meshrec.recognize(t, lib, workers=workers, cascade=False)
-                for t in (one, [one, two], far)
+                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in touches
             ]
     assert serial[2].widened_seconds > 0
     for s, p in zip(serial, parallel, strict=True):
@@ -301,21 +311,20 @@ def dask_cluster(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_a_dask_cluster_gives_the_serial_result(library, dask_cluster):
+def test_a_dask_cluster_gives_the_serial_result(library, serial_plain, dask_cluster):
     lib, cache = library
-    one, two = _touches(lib)
+    (one, both, _), serial = serial_plain
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        serial = [meshrec.recognize(t, lib, cascade=False) for t in (one, [one, two])]
         with ModelWorkers(lib, scheduler=dask_cluster, cache_dir=cache) as workers:
             assert workers.mode == "dask"
             assert workers.workers == 2
             remote = [
-                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in (one, [one, two])
+                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in (one, both)
             ]
         # and through recognize's own short-lived client
         once = meshrec.recognize(one, lib, scheduler=dask_cluster, cascade=False)
-    for s, r in zip(serial, remote, strict=True):
+    for s, r in zip(serial[:2], remote, strict=True):
         _same(s, r)
     _same(serial[0], once)
 
