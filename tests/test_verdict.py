@@ -17,6 +17,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
+from meshrec.bench import paper_touch
 from meshrec.recognition import jobs as jobs_module
 from meshrec.recognition import recognize as recognize_module
 
@@ -133,6 +134,25 @@ def test_each_model_keeps_its_best_fit_of_the_harder_looks(objects):
         assert reg.error <= min(wide[reg.model].error, dense[reg.model].error)
     # the denser look found a better fit somewhere (else this test would not tell)
     assert any(dense[m].error < wide[m].error for m in objects.names)
+
+
+def test_a_denser_look_where_the_window_held_fewer_sites_than_the_cap_changes_nothing(surfaces):
+    """The premise of the dense pass's skip: a model whose widened lookup chose fewer
+    candidates than ``defaults.MAX_CANDIDATES`` gets the same candidates, and the same
+    fit, with the dense cap (the spreading stops by its spacing, not by the cap)."""
+    touch = paper_touch(surfaces["ellipsoid"], 1).touch
+    model = surfaces["crossed_trough"]
+    wide = meshrec.register(touch, model, lookup_scale=defaults.LOOKUP_WIDEN_SCALE)
+    dense = meshrec.register(
+        touch,
+        model,
+        lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
+    )
+    assert 0 < wide.candidates < defaults.MAX_CANDIDATES  # else this test would not tell
+    assert dense.candidates == wide.candidates
+    assert dense.error == wide.error
+    np.testing.assert_array_equal(dense.T_model_touch, wide.T_model_touch)
 
 
 @pytest.mark.parametrize(

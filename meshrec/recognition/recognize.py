@@ -710,22 +710,27 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
 
 
 def _widened(
-    rec: Recognition, fits: dict, models: dict, method: str, run, max_candidates=None
-) -> Recognition:
+    rec: Recognition, fits: dict, models: dict, method: str, run, max_candidates=None, only=None
+) -> tuple[Recognition, frozenset]:
     """Register every model again with the (K, H) window widened; keep each one's better fit.
 
     With several touches, each is registered alone with the wider window; ``fits`` (the
     joint fits, by model) is updated in place where the wider pass fits better. One touch
-    may look at up to ``max_candidates`` candidates per model (None: the default number);
-    with a cap, the models ``rec`` holds rejected (the widened window held none of their
-    sites, and a denser look at the same window cannot find one) are kept as they are.
+    may look at up to ``max_candidates`` candidates per model (None: the default number),
+    and only the models named in ``only`` (None: all) are registered; the others are kept
+    as they are.
+
+    Returns the merged recognition and, for one touch, the names of the models whose
+    widened lookup filled the cap (``defaults.MAX_CANDIDATES`` candidates): only for
+    them can a denser look choose other candidates (the spreading stops short of the cap
+    by the same rule whatever the cap, so a model under it would get the same candidates
+    and the same fit; a model with none, rejected, gets none again).
     """
     merged = []
     wides = {}
+    capped = frozenset()
     if len(rec.touches) == 1:
-        # A denser look at the widened window cannot help a model whose widened lookup
-        # found no site at all (rejected again): only the others are registered.
-        todo = [reg for reg in rec.ranking if max_candidates is None or not reg.rejected]
+        todo = [reg for reg in rec.ranking if only is None or reg.model in only]
         regs = run.register_each(
             rec.touch,
             [models[reg.model] for reg in todo],
@@ -735,6 +740,9 @@ def _widened(
             max_candidates=max_candidates,
         )
         wides = {reg.model: wide for reg, wide in zip(todo, regs, strict=True)}
+        capped = frozenset(
+            name for name, wide in wides.items() if wide.candidates >= defaults.MAX_CANDIDATES
+        )
         wides.update({reg.model: reg for reg in rec.ranking if reg.model not in wides})
     for reg in rec.ranking:
         if len(rec.touches) > 1:
@@ -757,7 +765,7 @@ def _widened(
                 fits[reg.model] = fit
         else:
             merged.append(reg)
-    return dataclasses.replace(rec, ranking=tuple(merged))
+    return dataclasses.replace(rec, ranking=tuple(merged)), capped
 
 
 def _with_verdict(
@@ -797,22 +805,31 @@ def _with_verdict(
         t1 = time.perf_counter()
         if run is None:
             run = ModelWorkers(models, workers=1)
-        rec = _widened(rec, fits, by_name, method, run)
+        rec, capped = _widened(rec, fits, by_name, method, run)
         scores, noise = _score(rec, prior)
         rec = _ordered(rec, scores)
         looked = "every model registered again"
         if len(rec.touches) == 1 and _fits_worse_than_noise(rec, n, noise):
             # Still nothing fits: where the widened window matches most of a model's sites
             # (a thin, rough scan), the spread candidates lie too far apart to start from;
-            # look once more among more of them. Each model keeps its best fit of all.
-            rec = _widened(
-                rec, fits, by_name, method, run, max_candidates=defaults.LOOKUP_DENSE_CANDIDATES
+            # look once more among more of them (on the models where the window held more
+            # than the cap: the others would get the same candidates). Each model keeps
+            # its best fit of all.
+            rec, _ = _widened(
+                rec,
+                fits,
+                by_name,
+                method,
+                run,
+                max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
+                only=capped,
             )
             scores, noise = _score(rec, prior)
             rec = _ordered(rec, scores)
             looked = (
                 f"every model registered again, then once more with up to "
-                f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates"
+                f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates where the window held more "
+                f"than {defaults.MAX_CANDIDATES} sites"
             )
         t_wide = time.perf_counter() - t1
         cautions.append(
