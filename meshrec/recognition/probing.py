@@ -178,9 +178,14 @@ def warn_probe_offset(rec, models) -> None:
     model = {m.name: m for m in models}[best.model]
     points = np.vstack([t.points for t in rec.touches or (rec.touch,)])
     # The test below needs n (rms0^2 - rms^2) > PROBE_OFFSET_CHI2 max(noise, rms)^2, so
-    # a drop of the sum of squares by more than PROBE_OFFSET_CHI2 noise^2: where the
-    # residuals linearised at the rigid optimum cannot drop by a PROBE_OFFSET_LINEAR_MARGIN-th
-    # of that with any pose and R, the joint refinement is skipped (see the default).
+    # a drop of the sum of squares by more than PROBE_OFFSET_CHI2 noise^2. The drop that
+    # the residuals linearised at the rigid optimum allow (any pose, any R) is the score
+    # statistic of the added parameter, which the likelihood-ratio one (the refined drop)
+    # equals to first order; where it is below PROBE_OFFSET_CHI2 / PROBE_OFFSET_LINEAR_MARGIN
+    # noise^2 the joint refinement is skipped. Measured on 55 touches (no tip and tips of
+    # 0.02 to 0.2 on the paper surfaces, a sphere and a tube; one and three touches): the
+    # refined drop was within 2% of the linearised one wherever either was above 2 noise
+    # variances (to 16% for three touches at 8e5), and at most 0.42 above it below that.
     radius, rms0, rms = probe_offset(
         points,
         model,
