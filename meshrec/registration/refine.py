@@ -1,4 +1,5 @@
-"""Final rigid refinement of all six degrees of freedom.
+"""Final rigid refinement of all six degrees of freedom (and, for the probe-offset check,
+of the six with an outward offset of the surface: :func:`refine_offset`).
 
 The paper's search has three degrees of freedom: it keeps the data's estimated normal on
 the model's normal. That estimate carries the noise of the curve fit, so once the local
