@@ -109,3 +109,23 @@ def test_refine_offset_refuses_a_bad_bound(models, bad):
     points, T_true = _patch(m, 0.0, seed=6)
     with pytest.raises(ValueError, match="max_offset must be finite and >= 0"):
         refine_offset(m, points, T_true, bad)
+
+
+def test_probe_offset_searches_over_r_when_the_joint_fit_stalls(models, monkeypatch):
+    """A joint refinement that realises less than a quarter of its linearised drop (here
+    a stand-in that does not move) sends probe_offset to the search over R of rigid
+    refinements: the tip is still found (closed form: the offset sphere's 0.1)."""
+    import meshrec.recognition.probing as probing
+
+    m = models["sphere"]
+    points, T_true = _patch(m, 0.1, seed=7, noise=1e-3)
+    rms0 = refine_rigid(m, points, T_true).rms
+
+    def stalled(model, pts, T0, max_offset, **kwargs):
+        return OffsetRefinement(np.array(T0), 0.0, rms0, rms0, 1, linear_drop=1.0)
+
+    monkeypatch.setattr(probing, "refine_offset", stalled)
+    radius, rms_zero, rms = probing.probe_offset(points, m, T_true, 1e-3)
+    assert rms_zero == rms0
+    assert radius == pytest.approx(0.1, abs=0.01)
+    assert rms < 1.2e-3 < rms0 / 3  # down to the noise (1e-3 per coordinate)

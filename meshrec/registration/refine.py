@@ -80,6 +80,9 @@ class OffsetRefinement:
     rms : float
         Root-mean-square distance to the offset surface after refinement.
     iterations : int
+    linear_drop : float
+        The drop of the sum of squares that the residuals linearised at the start
+        predicted with any pose and R (unbounded), squared data units.
     """
 
     T_model_touch: np.ndarray
@@ -87,6 +90,7 @@ class OffsetRefinement:
     error: float
     rms: float
     iterations: int
+    linear_drop: float
 
 
 def _cross_into(J: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
@@ -122,7 +126,7 @@ def refine_rigid(
     -------
     Refinement
     """
-    T, values, cost, it, _ = _levenberg_marquardt(
+    T, values, cost, it, _, _ = _levenberg_marquardt(
         model, points, T_model_touch, max_iter, rel_tol, None, 0.0
     )
     absval = np.abs(values)
@@ -190,7 +194,7 @@ def refine_offset(
     """
     if not (math.isfinite(max_offset) and max_offset >= 0.0):
         raise ValueError(f"max_offset must be finite and >= 0, got {max_offset!r}")
-    T, values, cost, it, radius = _levenberg_marquardt(
+    T, values, cost, it, radius, linear = _levenberg_marquardt(
         model, points, T_model_touch, max_iter, rel_tol, float(max_offset), skip_below
     )
     absval = np.abs(values)
@@ -200,6 +204,7 @@ def refine_offset(
         error=float(absval.mean()),
         rms=float(np.sqrt(cost / len(absval))),
         iterations=it,
+        linear_drop=linear,
     )
 
 
@@ -241,21 +246,24 @@ def _moved(T: np.ndarray, A: np.ndarray, b: np.ndarray, lam: float, m, spread: f
 
 def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_offset, skip_below):
     """refine_rigid's loop, or refine_offset's (``max_offset`` given):
-    (T, values, cost, iterations, offset)."""
+    (T, values, cost, iterations, offset, linearised drop at the start)."""
     T = np.array(T_model_touch, dtype=np.float64)
     values, gradient, radius = _evaluate(model, points, T, max_offset)
     cost = float(values @ values)
     lam = defaults.REFINE_DAMPING
     it = 0
     small = False
+    linear = float("nan")
     for it in range(1, max_iter + 1):  # it is reported
         J, m, spread = _jacobian(T, points, gradient)
         if max_offset is None:
             A = J.T @ J
             b = -J.T @ values
         else:
-            if it == 1 and skip_below > 0.0 and _linear_gain(J, values, cost) < skip_below:
-                return T, values, cost, 0, radius
+            if it == 1:
+                linear = _linear_gain(J, values, cost)
+                if linear < skip_below:
+                    return T, values, cost, 0, radius, linear
             A, b = _offset_system(J, values, radius, max_offset)
         accepted = False
         while lam < defaults.REFINE_MAX_DAMPING:
@@ -278,7 +286,7 @@ def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_of
         if improvement < rel_tol and (max_offset is None or small):
             break
         small = improvement < rel_tol
-    return T, values, cost, it, radius
+    return T, values, cost, it, radius, linear
 
 
 def _linear_gain(J: np.ndarray, values: np.ndarray, cost: float) -> float:
