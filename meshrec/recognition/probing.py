@@ -98,7 +98,10 @@ def probe_offset(
     The data are refined rigidly onto the model's surface (from ``T_model_touch``), then
     the pose and R together onto the surface offset by R, R in ``[0, R_max]``, ``R_max``
     the smaller of ``defaults.PROBE_OFFSET_MAX_FRACTION`` of the touch's size and of the
-    model's (:func:`~meshrec.registration.refine.refine_offset`).
+    model's (:func:`~meshrec.registration.refine.refine_offset`); where that refinement
+    realises less than ``1 / defaults.PROBE_OFFSET_LINEAR_MARGIN`` of the drop its own
+    linearisation predicts, R is also searched by rigid refinements at several R (a
+    parabola's vertex), and the better answer kept.
     One touch cannot show the offset itself (a translation along the normal absorbs
     it), only through curvature: the offset surface's principal radii are larger by R on
     convex parts and smaller on concave ones, the same R everywhere, which no rigid
