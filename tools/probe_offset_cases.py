@@ -25,6 +25,8 @@ import time
 import warnings
 from pathlib import Path
 
+from _report import finish  # tools/_report.py
+
 import meshrec
 import meshrec.recognition.probing as probing
 import meshrec.recognition.recognize as recognize_module
@@ -119,13 +121,7 @@ def main(argv=None) -> int:
                     sim = meshrec.simulate_touch(model, rng=seed, probe_radius=tip, noise=1e-3,
                                                  length=0.6, name=shape)
                     out.append(_row(f"{shape} tip {tip:g} seed {seed}", sim.touch, library))
-    text = "\n".join(out) + "\n"
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
-        print(f"wrote {args.out}", file=sys.stderr)
-    print(text)
-    return 0
+    return finish(out, args.out)
 
 
 if __name__ == "__main__":
