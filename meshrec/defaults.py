@@ -637,6 +637,17 @@ PAIR_SEARCH_GAP = 3.0
 #: data are refined onto the best model's surface offset by R for R up to this fraction of
 #: the touch's size (half its largest extent from the centroid; and of the model's size).
 PROBE_OFFSET_MAX_FRACTION = 0.5
+#: The pose and R are refined together (meshrec.registration.refine.refine_offset) until
+#: a step improves the sum of squares by less than this fraction: a step's gain below
+#: n 1e-4 rms^2 / noise^2 in the chi-squared terms of the test below (0.02 for 183 points
+#: at rms = noise, against its threshold of 25). At refine's 1e-6 the refinement crept
+#: along a tube's free slide for 10 to 30 steps where the answer had settled.
+PROBE_OFFSET_REL_TOL = 1e-4
+#: The joint refinement is skipped when the residuals linearised at the rigid optimum
+#: predict a drop of the sum of squares below PROBE_OFFSET_CHI2 noise^2 / this (the least
+#: drop the warning's chi-squared test needs, with a margin for the residuals'
+#: curvature in the pose; measured: see probing.warn_probe_offset).
+PROBE_OFFSET_LINEAR_MARGIN = 4.0
 #: ... and a ProbeOffsetWarning is raised when the best R improves the fit by more than
 #: this chi-squared value (n (rms0^2 - rms^2) / noise^2, one added parameter) ...
 PROBE_OFFSET_CHI2 = 25.0

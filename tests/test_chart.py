@@ -163,6 +163,37 @@ def test_chart_keeps_the_side_it_started_on(ball):
     assert sp.normal @ (sp.point / np.linalg.norm(sp.point)) < -0.99
 
 
+@pytest.mark.parametrize("inward", [False, True])
+def test_chart_points_in_one_query_are_those_one_at_a_time(ball, can, inward):
+    """at_many's twin is at(): the same bits, on both sides (the fold test included)."""
+    rng = np.random.default_rng(13)
+    for ns in (ball, can):
+        for _ in range(4):
+            n0 = rng.normal(size=3)
+            n0[2] = n0[2] if ns is ball else 0.0
+            n0 /= np.linalg.norm(n0)
+            chart = SurfaceChart(ns.model, _origin(RADIUS * n0, -n0 if inward else n0, None))
+            uv = rng.uniform(-0.4, 0.4, size=(5, 2))
+            for (u, v), sp in zip(uv, chart.at_many(uv), strict=True):
+                one = chart.at(u, v)
+                assert np.array_equal(sp.point, one.point)
+                assert np.array_equal(sp.frame, one.frame)
+
+
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        (np.zeros(2), r"uv must have shape \(k, 2\)"),
+        (np.zeros((2, 3)), r"uv must have shape \(k, 2\)"),
+        (np.array([[0.1, np.nan]]), "points must be finite"),
+    ],
+)
+def test_chart_points_in_one_query_refuse_bad_coordinates(ball, bad, message):
+    chart = SurfaceChart(ball.model, _origin(np.array([0.0, 0.0, RADIUS]), np.eye(3)[2], None))
+    with pytest.raises(ValueError, match=message):
+        chart.at_many(bad)
+
+
 def test_tangent_frame_respects_its_hint():
     rng = np.random.default_rng(1)
     for _ in range(20):

@@ -140,3 +140,39 @@ class SurfaceChart:
             # A fold of the mesh within the chart: keep the side we started on.
             n = -n
         return SurfacePoint(point=closest[0], frame=tangent_frame(n, hint=d1))
+
+    def at_many(self, uv: np.ndarray) -> list[SurfacePoint]:
+        """:meth:`at` of several chart coordinates, in one closest-point query.
+
+        Each point's answer is :meth:`at`'s, to the bit (the query and the normals are
+        row by row; ``tests/test_chart.py`` checks): the search's Jacobian asks two
+        points at a time, and a query's Python costs about what its two points do.
+
+        Parameters
+        ----------
+        uv : (k, 2) float
+            Chart coordinates, model units.
+
+        Returns
+        -------
+        list of SurfacePoint
+            One per row of ``uv``.
+
+        Raises
+        ------
+        ValueError
+            If ``uv`` is not a (k, 2) array, or not finite (the query's own check).
+        """
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.ndim != 2 or uv.shape[1] != 2:
+            raise ValueError(f"uv must have shape (k, 2), got {uv.shape}")
+        d1, d2, n0 = self.origin.frame.T
+        x = self.origin.point + uv[:, :1] * d1 + uv[:, 1:] * d2
+        _, closest, face = self.model.surface.closest_points(x)
+        normals = self.model.surface.interpolated_normals(closest, face)
+        out = []
+        for point, n in zip(closest, normals, strict=True):
+            if np.dot(n, n0) < 0.0:
+                n = -n  # a fold of the mesh within the chart, as in at()
+            out.append(SurfacePoint(point=point, frame=tangent_frame(n, hint=d1)))
+        return out

@@ -111,15 +111,22 @@ class _ChartResiduals:
 
     def __init__(self, model, local_points, chart, step):
         self.model, self.local, self.chart, self.step = model, local_points, chart, step
-        self._key = None
+        self._states = {}
 
     def _at(self, x):
+        # Every evaluated point is kept (a few tens per chart): the search's answer is one
+        # of them, and its contact and error are then read here, not queried again.
         key = x.tobytes()
-        if key != self._key:
+        state = self._states.get(key)
+        if state is None:
             surface = self.chart.at(x[0], x[1])
             y = _placed(self.local, surface, x[2])
-            self._key, self._state = key, (surface, y, residuals(self.model, y))
-        return self._state
+            state = self._states[key] = (surface, y, residuals(self.model, y))
+        return state
+
+    def evaluated(self, x):
+        """The (surface point, placed data, residuals) at ``x`` if evaluated, else None."""
+        return self._states.get(np.asarray(x, dtype=np.float64).tobytes())
 
     def fun(self, x):
         return self._at(x)[2].values
@@ -128,10 +135,9 @@ class _ChartResiduals:
         surface, y, res = self._at(x)
         g = res.gradient
         J = np.empty((len(y), 3))
-        for j in range(2):
-            dx = np.zeros(2)
-            dx[j] = self.step
-            moved = self.chart.at(x[0] + dx[0], x[1] + dx[1])
+        # Both one-sided differences in one chart query (the same points as two).
+        uv = np.array([[x[0] + self.step, x[1] + 0.0], [x[0] + 0.0, x[1] + self.step]])
+        for j, moved in enumerate(self.chart.at_many(uv)):
             dy = (_placed(self.local, moved, x[2]) - y) / self.step
             J[:, j] = np.einsum("ij,ij->i", g, dy)
         J[:, 2] = np.einsum("ij,ij->i", g, _cross_rows(surface.normal, y - surface.point))
@@ -153,6 +159,7 @@ def _search_lm(model, local_points, start, phi0, scale) -> LocalSearch:
     origin, phi = start, float(phi0)
     path = [origin.point]
     evaluations = 0
+    state = None
     for _ in range(defaults.MAX_RECENTRES):
         chart = SurfaceChart(model, origin)
         problem = _ChartResiduals(model, local_points, chart, defaults.CHART_FD_STEP * scale)
@@ -168,11 +175,14 @@ def _search_lm(model, local_points, start, phi0, scale) -> LocalSearch:
         )
         evaluations += int(sol.nfev)
         u, v, phi = (float(t) for t in sol.x)
-        origin = chart.at(u, v)
+        state = problem.evaluated(sol.x)
+        origin = chart.at(u, v) if state is None else state[0]
         path.append(origin.point)
         if np.hypot(u, v) < defaults.RECENTRE_TOL_FRACTION * scale:
             break
-    err = float(np.abs(residuals(model, _placed(local_points, origin, phi)).values).mean())
+    if state is None:
+        state = (origin, None, residuals(model, _placed(local_points, origin, phi)))
+    err = float(np.abs(state[2].values).mean())
     return LocalSearch(
         surface=origin,
         phi=phi % (2 * np.pi),
