@@ -9,7 +9,9 @@ from scipy.spatial.transform import Rotation
 
 import meshrec
 from meshrec.registration.batch import refine_rigid_batch
+from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.refine import refine_rigid
+from meshrec.registration.transform import apply_transform
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
@@ -43,6 +45,35 @@ def test_each_start_is_refine_rigid_from_it(model, max_iter):
         one = refine_rigid(model, points, T, max_iter=max_iter)
         np.testing.assert_array_equal(b.T_model_touch, one.T_model_touch)
         assert (b.error, b.rms, b.iterations) == (one.error, one.rms, one.iterations)
+
+
+@pytest.mark.parametrize("max_iter", [0, 3, 30])
+def test_given_initial_residuals_change_nothing(model, max_iter):
+    # The residuals at the starts, given (as joint_poses passes those its ranking of the
+    # seeds computed), instead of queried: the same refinements to the last bit.
+    rng = np.random.default_rng(8)
+    sim = meshrec.simulate_touch(model, rng=3)
+    points = sim.touch.points[::2]
+    T0 = _starts(sim, 5, rng)
+    stacked = residuals(model, np.vstack([apply_transform(T, points) for T in T0]))
+    n = len(points)
+    initial = [
+        Residuals(
+            values=stacked.values[i * n : (i + 1) * n],
+            closest=stacked.closest[i * n : (i + 1) * n],
+            gradient=stacked.gradient[i * n : (i + 1) * n],
+        )
+        for i in range(len(T0))
+    ]
+    given = refine_rigid_batch(model, points, T0, max_iter=max_iter, initial=initial)
+    queried = refine_rigid_batch(model, points, T0, max_iter=max_iter)
+    for a, b in zip(given, queried, strict=True):
+        np.testing.assert_array_equal(a.T_model_touch, b.T_model_touch)
+        assert (a.error, a.rms, a.iterations) == (b.error, b.rms, b.iterations)
+    with pytest.raises(ValueError, match=r"initial must hold one Residuals of \d+ values per"):
+        refine_rigid_batch(model, points, T0, initial=initial[:-1])
+    with pytest.raises(ValueError, match="initial must hold one Residuals"):
+        refine_rigid_batch(model, points[:-1], T0, initial=initial)
 
 
 def test_no_start_gives_nothing(model):

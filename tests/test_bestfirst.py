@@ -11,7 +11,9 @@ from meshrec import defaults
 from meshrec.recognition import joint
 from meshrec.recognition.bestfirst import fit_best_first
 from meshrec.recognition.scoring import fit_p_value, log_likelihoods, noise_estimate
+from meshrec.registration.objective import residuals
 from meshrec.registration.register import register, touch_geometry
+from meshrec.registration.transform import apply_transform
 
 
 @pytest.fixture(scope="module")
@@ -189,7 +191,14 @@ def test_the_least_start_rms_are_those_of_every_seed_evaluated(on_torus, best):
     points = np.vstack([t.points for t in touches])
     sub = points[:: max(1, len(points) // defaults.JOINT_COARSE_POINTS)]
     every = _rms_on(model, sub, seeds)
-    order, rms = _least_start_rms(model, sub, seeds, best)
+    order, rms, res = _least_start_rms(model, sub, seeds, best)
     assert order.tolist() == np.argsort(every, kind="stable")[:best].tolist()
     assert all(rms[i] == every[i] for i in order)
     assert len(rms) < len(seeds)  # the premise: not every seed was evaluated on all
+    # the residuals kept for the refinement's start: each seed's own query's, to the bit
+    assert set(res) == set(rms)
+    for i in order:
+        alone = residuals(model, apply_transform(seeds[i], sub))
+        np.testing.assert_array_equal(res[i].values, alone.values)
+        np.testing.assert_array_equal(res[i].closest, alone.closest)
+        np.testing.assert_array_equal(res[i].gradient, alone.gradient)

@@ -125,3 +125,33 @@ def test_one_model_fitting_worse_than_the_noise_is_not_recognised():
     assert decide(names, probs, good, n, noise).verdict == "recognised"
     # A library of one model: nothing else could have been missed
     assert decide(["a"], [1.0], poor, n, noise).verdict == "recognised"
+
+
+
+def test_pair_screen_tree_gives_the_exact_nearest_sites(bumped, monkeypatch):
+    # The screen's KD tree is built for speed (without compact nodes). Its capped
+    # distances are the brute-force nearest sites' (points near the surface and far off),
+    # and the seeds are those of scipy's default tree: the same poses, in the same order.
+    import meshrec.recognition.pairs as pairs_module
+
+    sites = np.vstack([bumped.mesh.vertices, bumped.curvature.points])
+    rng = np.random.default_rng(4)
+    x = sites[rng.integers(len(sites), size=600)] + rng.normal(scale=0.05, size=(600, 3))
+    cap = 0.08
+    got = pairs_module.cKDTree(sites, compact_nodes=False).query(x, distance_upper_bound=cap)[0]
+    d = x[:, None, :] - sites[None, :, :]
+    brute = np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2])
+    brute = brute.min(axis=1)
+    assert np.isinf(got).any()  # capped ...
+    assert np.isfinite(got).any()  # ... and not
+    np.testing.assert_array_equal(got, np.where(brute < cap, brute, np.inf))
+
+    touches, _ = _touches(bumped, 2, count=3)
+    geometries = [touch_geometry(t) for t in touches]
+    fast = pair_seeds(touches, bumped, geometries, keep=8)
+    original = pairs_module.cKDTree
+    monkeypatch.setattr(pairs_module, "cKDTree", lambda points, *args, **kwargs: original(points))
+    default = pair_seeds(touches, bumped, geometries, keep=8)
+    assert len(fast) == len(default) >= 1
+    for a, b in zip(fast, default, strict=True):
+        np.testing.assert_array_equal(a, b)

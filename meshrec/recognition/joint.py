@@ -36,7 +36,7 @@ from meshrec.recognition.scoring import (
 )
 from meshrec.recognition.weak import weak_motion_starts
 from meshrec.registration.batch import refine_rigid_batch
-from meshrec.registration.objective import residuals
+from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.phi import bracket_minima
 from meshrec.registration.poses import PoseHypothesis, distinct_poses, refined_pose
 from meshrec.registration.register import Registration, StageTimes, register
@@ -232,21 +232,28 @@ def joint_poses(
     # all the points (a few steps).
     # Only seeds that start near the best one: the others are far off (a wrong touch
     # placement) and would take many steps to reach what the best reaches in a few.
-    order, start_rms = _least_start_rms(model, sub, seeds, best)
+    order, start_rms, start_res = _least_start_rms(model, sub, seeds, best)
     # In lockstep, one closest-point query per round for all the seeds (the same results
-    # as refine_rigid from each: meshrec.registration.batch).
-    starts = [seeds[k] for k in order if start_rms[k] <= start_ratio * start_rms[order[0]]]
+    # as refine_rigid from each: meshrec.registration.batch), from the residuals the
+    # ranking above computed at the starts (not queried again).
+    chosen = [k for k in order if start_rms[k] <= start_ratio * start_rms[order[0]]]
+    starts = np.array([seeds[k] for k in chosen])
     tol = defaults.JOINT_SAME_POSE_FRACTION * float(geometry.half_length)
-    coarse = sorted(_coarse(model, sub, np.array(starts), tol), key=lambda c: c.rms)
+    coarse = sorted(
+        _coarse(model, sub, starts, tol, [start_res[k] for k in chosen]), key=lambda c: c.rms
+    )
     least = min(c.rms for c in coarse)
     kept = [c.T_model_touch for c in coarse if c.rms <= defaults.JOINT_KEEP_RATIO * least]
     kept = _merged(kept, sub, tol)
+    initial = None
     if np.isfinite(hopeless_rms):
-        scored = refine_rigid_batch(model, points, np.array(kept), max_iter=0)
+        # the residuals at the kept poses, for this test and as the fine stage's start
+        initial = _rms_on(model, points, kept, keep=True)[1]
+        scored = refine_rigid_batch(model, points, np.array(kept), max_iter=0, initial=initial)
         if min(r.rms for r in scored) > defaults.JOINT_FINE_GAIN * hopeless_rms:
             out = sorted((refined_pose(model, r, geometry.point) for r in scored), key=_rms)
             return distinct_poses(out, float(geometry.half_length))
-    refs = refine_rigid_batch(model, points, np.array(kept))
+    refs = refine_rigid_batch(model, points, np.array(kept), initial=initial)
     # Along a nearly free motion (a turn of a bumped sphere about its centre) the
     # point-to-plane steps crawl, a few per cent of the way per iteration, and the
     # iteration limit stopped them short of the minimum (0.28 from the truth where the
@@ -269,8 +276,9 @@ def _rms(pose: PoseHypothesis) -> float:
 
 
 def _least_start_rms(model, sub: np.ndarray, seeds: Sequence[np.ndarray], best: int):
-    """The ``best`` seeds of least RMS on ``sub`` (least first, ties by index), and the RMS
-    of each seed as a dict (only the seeds whose RMS was needed).
+    """The ``best`` seeds of least RMS on ``sub`` (least first, ties by index), the RMS
+    of each seed as a dict (only the seeds whose RMS was needed), and their residuals on
+    ``sub`` (a dict of the same seeds: the refinement starts from them).
 
     The same seeds, in the same order and with the same values, as the RMS of every seed
     sorted (each point's residual is its own, whatever else is queried with it). With many
@@ -283,36 +291,54 @@ def _least_start_rms(model, sub: np.ndarray, seeds: Sequence[np.ndarray], best: 
     k, m = len(seeds), len(sub)
     probe_stride = max(1, m // defaults.JOINT_START_PROBE_POINTS)
     if k <= 4 * best or probe_stride == 1:
-        rms = _rms_on(model, sub, seeds)
-        return np.argsort(rms, kind="stable")[:best], dict(enumerate(rms))
+        rms, res = _rms_on(model, sub, seeds, keep=True)
+        return np.argsort(rms, kind="stable")[:best], dict(enumerate(rms)), dict(enumerate(res))
     probe = sub[::probe_stride]
     bound = (_rms_on(model, probe, seeds) ** 2) * len(probe)  # sums of squares on probe
     ranked = np.argsort(bound, kind="stable")
     exact: dict[int, float] = {}
+    placed: dict[int, Residuals] = {}
     chunk = max(best, 16)
     at = 0
     while at < k:
         ids = ranked[at : at + chunk].tolist()
-        rms = _rms_on(model, sub, [seeds[i] for i in ids])
+        rms, res = _rms_on(model, sub, [seeds[i] for i in ids], keep=True)
         exact.update(zip(ids, rms.tolist(), strict=True))
+        placed.update(zip(ids, res, strict=True))
         at += len(ids)
         if len(exact) >= best and at < k:
             kth = sorted(exact.values())[best - 1] ** 2 * m  # the best-th least sum
             if kth * (1.0 + 1e-9) < bound[ranked[at]]:
                 break  # every seed left sums more than the best-th on the probe alone
     order = sorted(exact, key=lambda i: (exact[i], i))[:best]
-    return np.array(order, dtype=np.int64), exact
+    return np.array(order, dtype=np.int64), exact, placed
 
 
-def _rms_on(model, points: np.ndarray, poses: Sequence[np.ndarray]) -> np.ndarray:
-    """(k,) RMS distance of ``points`` placed by each of the ``k`` poses, one query."""
+def _rms_on(model, points: np.ndarray, poses: Sequence[np.ndarray], keep: bool = False):
+    """(k,) RMS distance of ``points`` placed by each of the ``k`` poses, one query; with
+    ``keep``, also each pose's residuals (a list of k Residuals, as
+    :func:`~meshrec.registration.objective.residuals` gives them for that pose alone:
+    each point's answer is its own)."""
     stacked = np.vstack([apply_transform(T, points) for T in poses])
-    values = residuals(model, stacked).values.reshape(len(poses), len(points))
-    return np.sqrt((values**2).mean(1))
+    res = residuals(model, stacked)
+    rms = np.sqrt((res.values.reshape(len(poses), len(points)) ** 2).mean(1))
+    if not keep:
+        return rms
+    n = len(points)
+    return rms, [
+        Residuals(
+            values=res.values[i * n : (i + 1) * n],
+            closest=res.closest[i * n : (i + 1) * n],
+            gradient=res.gradient[i * n : (i + 1) * n],
+        )
+        for i in range(len(poses))
+    ]
 
 
-def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float) -> list:
-    """The coarse stage of :func:`joint_poses`: every start refined on ``sub``.
+def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float, initial=None) -> list:
+    """The coarse stage of :func:`joint_poses`: every start refined on ``sub`` (from the
+    residuals ``initial`` at the starts, when given: see
+    :func:`~meshrec.registration.batch.refine_rigid_batch`).
 
     With more starts than ``defaults.JOINT_REFINE_SEEDS``, the refinement stops after
     ``defaults.JOINT_MERGE_ITER`` iterations, the starts that have reached the same pose
@@ -322,8 +348,11 @@ def _coarse(model, sub: np.ndarray, starts: np.ndarray, tol: float) -> list:
     total = defaults.JOINT_COARSE_ITER
     first = defaults.JOINT_MERGE_ITER
     if len(starts) <= defaults.JOINT_REFINE_SEEDS or first >= total:
-        return refine_rigid_batch(model, sub, starts, max_iter=total)
-    early = sorted(refine_rigid_batch(model, sub, starts, max_iter=first), key=lambda c: c.rms)
+        return refine_rigid_batch(model, sub, starts, max_iter=total, initial=initial)
+    early = sorted(
+        refine_rigid_batch(model, sub, starts, max_iter=first, initial=initial),
+        key=lambda c: c.rms,
+    )
     unique = _merged([c.T_model_touch for c in early], sub, tol)
     kept_ids = {id(T) for T in unique}
     early = [c for c in early if id(c.T_model_touch) in kept_ids]

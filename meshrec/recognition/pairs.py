@@ -243,7 +243,12 @@ def _screen(model, touches, geometries, T: np.ndarray, cap: float) -> np.ndarray
     Two rounds: each touch's contact and one far point for every pose, then those and a
     second far point per touch for the best ``defaults.PAIR_SCREEN_FIRST``; the best
     ``defaults.PAIR_SCREEN`` are returned, best first."""
-    tree = cKDTree(np.vstack([model.mesh.vertices, model.curvature.points]))
+    # Without compact_nodes: the tree's nodes keep their full boxes, so the capped queries
+    # (most of a look-alike's pair search) prune more; each distance is still the exact
+    # nearest one (the same bits). Measured on the five pair screens of a look-alike's
+    # three-touch recognition (set 7, ellipsoid_7_0; 29,000 to 41,000 poses each, 3 rounds):
+    # 0.57 s against 0.71 s as the median, load average 2-3.
+    tree = cKDTree(np.vstack([model.mesh.vertices, model.curvature.points]), compact_nodes=False)
     probe, first = _probes(touches, geometries)
 
     def rms(poses, points):

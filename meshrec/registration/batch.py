@@ -57,6 +57,7 @@ def refine_rigid_batch(
     T_model_touch: np.ndarray,
     max_iter: int = defaults.REFINE_MAX_ITER,
     rel_tol: float = defaults.REFINE_REL_TOL,
+    initial: list[Residuals] | None = None,
 ) -> list[Refinement]:
     """:func:`~meshrec.registration.refine.refine_rigid` from each of several starts.
 
@@ -71,6 +72,11 @@ def refine_rigid_batch(
         Iterations at most, per start.
     rel_tol : float
         Stop a start when its sum of squares improves by less than this fraction.
+    initial : list of Residuals, optional
+        The residuals of ``points`` placed by each start
+        (:func:`~meshrec.registration.objective.residuals` of
+        ``apply_transform(T_model_touch[i], points)``), when the caller has them already:
+        they are used instead of a first query (the same results, one query less).
 
     Returns
     -------
@@ -80,7 +86,8 @@ def refine_rigid_batch(
     Raises
     ------
     ValueError
-        If ``T_model_touch`` is not ``(k, 4, 4)`` or ``points`` not ``(n, 3)`` with n >= 1.
+        If ``T_model_touch`` is not ``(k, 4, 4)``, ``points`` not ``(n, 3)`` with n >= 1, or
+        ``initial`` does not hold one Residuals of ``n`` values per start.
     """
     T0 = np.asarray(T_model_touch, dtype=np.float64)
     if T0.ndim != 3 or T0.shape[1:] != (4, 4):
@@ -88,11 +95,19 @@ def refine_rigid_batch(
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != 3 or len(P) == 0:
         raise ValueError(f"points must have shape (n, 3) with n >= 1, got {P.shape}")
+    if initial is not None and (
+        len(initial) != len(T0) or any(np.shape(r.values) != (len(P),) for r in initial)
+    ):
+        raise ValueError(
+            f"initial must hold one Residuals of {len(P)} values per start ({len(T0)}), got "
+            f"{[np.shape(r.values) for r in initial]}"
+        )
     starts = [_Start(np.array(T)) for T in T0]
     if not starts:
         return []
-    for s, r in zip(starts, _batch_residuals(model, [apply_transform(s.T, P) for s in starts]),
-                    strict=True):
+    if initial is None:
+        initial = _batch_residuals(model, [apply_transform(s.T, P) for s in starts])
+    for s, r in zip(starts, initial, strict=True):
         s.res, s.cost = r, float(r.values @ r.values)
     if max_iter < 1:
         for s in starts:
