@@ -26,13 +26,19 @@ demo: install
 		--truth $(OUT)/truth.json --seed $(SEED)
 	$(BIN)/meshrec recognize $(OUT)/touch.csv --models models/surfaces
 
-## test: lint and run the test suite without the tests marked slow (4 to 9 minutes on 2 cores)
+# The tests run in two processes (pytest-xdist), each test file in one of them (its
+# module fixtures built once): 6.1 minutes for every test on the 2-core machine, against
+# 11.0 in one process. JOBS=0 runs them in this process (no worker).
+JOBS ?= 2
+PYTEST := $(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
+
+## test: lint and run the test suite without the tests marked slow
 test: install lint
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 ## test-all: lint and run every test, the slow ones too (what CI runs)
 test-all: install lint
-	$(BIN)/python -m pytest -q
+	$(PYTEST)
 
 lint: install
 	$(BIN)/ruff check .
