@@ -448,3 +448,20 @@ def test_an_object_not_in_the_library_gets_no_tip_suggestion(tmp_path):
     assert gain > defaults.PROBE_OFFSET_CHI2
     assert radius > defaults.PROBE_OFFSET_MIN_NOISE * rec.noise
     assert rms0**2 - rms**2 < defaults.PROBE_OFFSET_EXPLAINED * (rms0**2 - rec.noise**2)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"noise": 0.0}, r"noise must be > 0, got 0\.0"),
+        ({"noise": float("nan")}, r"noise must be finite, got nan"),
+        ({"noise": 1e-3, "min_gain": -1.0}, r"min_gain must be >= 0, got -1\.0"),
+        ({"noise": 1e-3, "min_gain": float("inf")}, r"min_gain must be finite, got inf"),
+    ],
+)
+def test_probe_offset_refuses_bad_noise_and_min_gain(models, kwargs, message):
+    from meshrec.recognition.probing import probe_offset
+
+    sim = _touch(models["sphere"], 0.0)
+    with pytest.raises(ValueError, match=message):
+        probe_offset(sim.touch.points, models["sphere"], sim.T_model_touch, **kwargs)

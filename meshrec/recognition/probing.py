@@ -17,6 +17,7 @@ import numpy as np
 
 from meshrec import defaults
 from meshrec.contact.probe import ProbeOffsetWarning, check_probe_radius
+from meshrec.io.checks import check_number
 from meshrec.model.probe import probe_model
 from meshrec.registration.refine import refine_offset, refine_rigid
 
@@ -132,7 +133,15 @@ def probe_offset(
         The best R, data units.
     rms0, rms : float
         RMS distance at R = 0 and at ``radius``, both after rigid refinement.
+
+    Raises
+    ------
+    ValueError
+        If ``noise`` is not a positive finite number or ``min_gain`` not a non-negative
+        finite one.
     """
+    noise = check_number(noise, "noise", positive=True)
+    min_gain = check_number(min_gain, "min_gain", minimum=0.0)
     points = np.asarray(points, dtype=np.float64)
     r_max = defaults.PROBE_OFFSET_MAX_FRACTION * min(_half_length(points), model.mesh.scale)
     rigid = refine_rigid(model, points, T_model_touch)
