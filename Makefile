@@ -27,8 +27,8 @@ demo: install
 	$(BIN)/meshrec recognize $(OUT)/touch.csv --models models/surfaces
 
 # The tests run in two processes (pytest-xdist), each test file in one of them (its
-# module fixtures built once): 6.6 minutes for every test on the 2-core machine, against
-# 11.0 in one process (clean clones' CI runs). JOBS=0 runs them in this process (no worker).
+# module fixtures built once): 6.6 to 7.1 minutes for every test on the 2-core machine,
+# against 11.0 in one process (clean clones' CI runs). JOBS=0 runs them in this process (no worker).
 JOBS ?= 2
 PYTEST := $(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
 
