@@ -587,18 +587,26 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
     return _ranked(rec, [f.registration for f in fits.values()]), fits
 
 
-def _search_adequately(touches, models, geometries, fits: dict, noise: float, n: int, method):
+def _search_adequately(
+    touches, models, geometries, fits: dict, noise: float, n: int, method, lookup_scale=1.0
+):
     """Search again, from pairs of touches, every model whose joint pose may have been missed.
 
     The scores trust each model's best joint fit. On look-alike shapes touched with short
     noisy curves each touch alone fits every model at many places, and the right model's
     joint search can end in a wrong basin while a wrong model's happens to fit: a wrong
-    and confident answer. So, in rounds until none qualifies (each model searched once;
-    an order-free step over all the fits): a model more than ``defaults.PAIR_SEARCH_GAP``
-    below the best log-likelihood is registered on every touch alone; if its best
-    conceivable fit (:func:`~meshrec.recognition.joint.log_likelihood_bound`) still comes
-    within that gap of the best, it is searched again from pairs of touches
-    (:func:`~meshrec.recognition.joint.search_pairs`). ``fits`` is updated in place.
+    and confident answer. The right model's search can also end in a wrong basin
+    while it still leads (touches across a scan's rims, where each touch alone is placed
+    badly): then even the best joint fit is worse than the noise allows, and the answer
+    would be ``unknown`` for an object in the library. So, in rounds until none qualifies
+    (each model searched once; an order-free step over all the fits): a model more than
+    ``defaults.PAIR_SEARCH_GAP`` below the best log-likelihood, or whose joint fit is worse
+    than the noise allows (p-value under ``defaults.WIDEN_P_VALUE``), is registered on
+    every touch alone; if its best conceivable fit
+    (:func:`~meshrec.recognition.joint.log_likelihood_bound`) still comes within that gap
+    of the best, it is searched again from pairs of touches
+    (:func:`~meshrec.recognition.joint.search_pairs`), both with the (K, H) window widened
+    by ``lookup_scale``. ``fits`` is updated in place.
     """
     searched = set()
     gap = defaults.PAIR_SEARCH_GAP
@@ -611,7 +619,10 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
             for m in models
             if m.name not in searched
             and not fits[m.name].registration.rejected
-            and ll[names.index(m.name)] < leader - gap
+            and (
+                ll[names.index(m.name)] < leader - gap
+                or _fits_worse(fits[m.name].registration.rms, n, noise)
+            )
             and log_likelihood_bound(fits[m.name], touches, noise, geometries) >= leader - gap
         ]
         if not todo:
@@ -627,11 +638,14 @@ def _search_adequately(touches, models, geometries, fits: dict, noise: float, n:
                     upto=len(touches),
                     previous=fit,
                     method=method,
+                    lookup_scale=lookup_scale,
                     noise=noise,
                 )
             if log_likelihood_bound(fit, touches, noise, geometries) >= leader - gap:
                 far = rms_out_of_reach(leader, n, noise)
-                fit = search_pairs(touches, model, geometries, fit, hopeless_rms=far)
+                fit = search_pairs(
+                    touches, model, geometries, fit, lookup_scale=lookup_scale, hopeless_rms=far
+                )
             fits[model.name] = fit
 
 
@@ -765,6 +779,22 @@ def _widened(
                 fits[reg.model] = fit
         else:
             merged.append(reg)
+    if len(rec.touches) > 1:
+        # Every touch registered alone with the wider window, but a joint pose missed
+        # still: the pairs of touches again, with the wider window too.
+        noise, n = _noise_and_points(rec)
+        present = [models[reg.model] for reg in merged if reg.model in fits]
+        _search_adequately(
+            rec.touches,
+            present,
+            rec.geometries,
+            fits,
+            noise,
+            n,
+            method,
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        )
+        merged = [fits[reg.model].registration if reg.model in fits else reg for reg in merged]
     return dataclasses.replace(rec, ranking=tuple(merged)), capped
 
 
@@ -881,9 +911,12 @@ def _with_verdict(
 def _fits_worse_than_noise(rec: Recognition, n: int, noise: float) -> bool:
     """Whether even the best-scored model (or none at all) fits worse than the noise allows."""
     best = rec.scores[0] if rec.scores else None
-    return (
-        best is None or best.rms is None or fit_p_value(best.rms, n, noise) < defaults.WIDEN_P_VALUE
-    )
+    return best is None or best.rms is None or _fits_worse(best.rms, n, noise)
+
+
+def _fits_worse(rms: float, n: int, noise: float) -> bool:
+    """Whether a fit's RMS is worse than the noise allows (``defaults.WIDEN_P_VALUE``)."""
+    return fit_p_value(rms, n, noise) < defaults.WIDEN_P_VALUE
 
 
 def _with_data_plausible(v: Verdict, scores, n: int, noise: float) -> Verdict:
