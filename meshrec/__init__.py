@@ -57,6 +57,7 @@ _WHERE = {
     "screen_library": "meshrec.recognition.screen",
     "screen_survivors": "meshrec.recognition.screen",
     "recognize": "meshrec.recognition.recognize",
+    "ProbeOffset": "meshrec.recognition.probing",
     "PhaseTimes": "meshrec.recognition.phases",
     "ModelScore": "meshrec.recognition.scoring",
     "VERDICTS": "meshrec.recognition.scoring",
@@ -115,6 +116,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.phases import PhaseTimes
+    from meshrec.recognition.probing import ProbeOffset
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
     from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
@@ -160,6 +162,7 @@ __all__ = [
     "PhiBrackets",
     "PoseFreedom",
     "PoseHypothesis",
+    "ProbeOffset",
     "ProbeOffsetWarning",
     "Recognition",
     "RefinedSearch",

@@ -33,7 +33,12 @@ from meshrec.recognition.joint import (
     search_pairs,
 )
 from meshrec.recognition.phases import PhaseTimes, phase_clock, timed
-from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
+from meshrec.recognition.probing import (
+    ProbeOffset,
+    check_tip_fits,
+    touch_probe_radius,
+    warn_probe_offset,
+)
 from meshrec.recognition.scoring import (
     ModelScore,
     Verdict,
@@ -111,6 +116,12 @@ class Recognition:
         about a cylinder's axis is; a slide along it is not) the verdict is never
         ``recognised``: with one plausible model it is ``ambiguous`` with that model alone,
         and the reason says the model is named but the pose is not fixed.
+    probe_offset : ProbeOffset or None
+        The probe-offset check's evidence (:func:`meshrec.recognition.probing.probe_offset`
+        at the best model's pose: the tip radius that best explains the data, the RMS
+        without and with it, the linearised drop), whether it warned or not. None when
+        the check did not run (a probe radius given or read from the touches, no model
+        registered).
     phase_times : PhaseTimes
         CPU seconds of each phase of the recognition (``time.process_time``; see
         :class:`~meshrec.recognition.phases.PhaseTimes`). Not part of the equality of two
@@ -134,6 +145,7 @@ class Recognition:
     touch_rms: tuple[float | None, ...] = ()
     probe_radius: float = 0.0
     pose_freedom: PoseFreedom | None = None
+    probe_offset: ProbeOffset | None = None
     phase_times: PhaseTimes = dataclasses.field(default_factory=PhaseTimes, compare=False)
 
     @property
@@ -313,7 +325,7 @@ def _recognize(
                 warn_sharp_edges(rec, seen)
             if radius == 0.0:
                 with timed("probe_offset"):
-                    warn_probe_offset(rec, models)
+                    rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
     finally:
         if own:
             run.close()
