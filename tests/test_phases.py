@@ -182,3 +182,15 @@ def test_three_touches_time_the_joint_phases(ellipsoid_capsule_torus):
     assert p.dense == 0.0
     # two runs give the same answers, whatever their clocks say
     assert _answers(rec) == _answers(again)
+
+
+def test_the_clock_adds_no_frame_to_the_warnings(objects):
+    """The recognition's own warnings still point at its caller (their stack levels count
+    from ``recognize``'s frame, which holds the clock)."""
+    touch = meshrec.simulate_touch(objects["cylinder_2"], rng=0).touch
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        meshrec.recognize(touch, objects)
+    edges = [w for w in caught if issubclass(w.category, meshrec.SharpEdgeWarning)]
+    assert edges
+    assert all(w.filename == __file__ for w in edges)

@@ -262,82 +262,77 @@ def recognize(
     TypeError
         If ``cascade`` is not a bool or None.
     """
+    # The clock in this frame, not in a wrapper: the warnings' stack levels count from here.
     with phase_clock() as clock:
-        rec = _recognize(
-            touch, library, method, progress, geometry, probe_radius, workers, scheduler, cascade
-        )
-        return dataclasses.replace(rec, phase_times=clock.times())
-
-
-def _recognize(
-    touch, library, method, progress, geometry, probe_radius, workers, scheduler, cascade
-) -> Recognition:
-    """:func:`recognize`'s work, each phase timed on the current clock (:func:`timed`)."""
-    t0 = time.perf_counter()
-    touches = _touches(touch)
-    geometries = _geometries(geometry, len(touches))
-    check_choice(method, SEARCH_METHODS, "method")
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
-    if cascade is None:
-        cascade = defaults.CASCADE
-    if not isinstance(cascade, (bool, np.bool_)):
-        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
-    if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
-        raise TypeError(
-            f"library must be a ModelLibrary or an iterable of ModelIndex, got "
-            f"{type(library).__name__}"
-        )
-    models = list(library)
-    for i, model in enumerate(models):
-        check_instance(model, ModelIndex, f"library[{i}]")
-    radius = touch_probe_radius(touches, probe_radius)
-    # the models as the ball's centres see them (themselves for a point probe); the
-    # resolution warnings are the plain models' own (their cached resolution)
-    seen = [probe_model(m, radius) for m in models]
-    caught: list = []
-    run, own = _runner(seen, workers, scheduler)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if radius > 0.0:
-                with timed("geometry"):
-                    geometries = tuple(
-                        g if g is not None else touch_geometry(t)
-                        for t, g in zip(touches, geometries, strict=True)
+        t0 = time.perf_counter()
+        touches = _touches(touch)
+        geometries = _geometries(geometry, len(touches))
+        check_choice(method, SEARCH_METHODS, "method")
+        if progress is not None and not callable(progress):
+            raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+        if cascade is None:
+            cascade = defaults.CASCADE
+        if not isinstance(cascade, (bool, np.bool_)):
+            raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
+        if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
+            raise TypeError(
+                f"library must be a ModelLibrary or an iterable of ModelIndex, got "
+                f"{type(library).__name__}"
+            )
+        models = list(library)
+        for i, model in enumerate(models):
+            check_instance(model, ModelIndex, f"library[{i}]")
+        radius = touch_probe_radius(touches, probe_radius)
+        # the models as the ball's centres see them (themselves for a point probe); the
+        # resolution warnings are the plain models' own (their cached resolution)
+        seen = [probe_model(m, radius) for m in models]
+        caught: list = []
+        run, own = _runner(seen, workers, scheduler)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                if radius > 0.0:
+                    with timed("geometry"):
+                        geometries = tuple(
+                            g if g is not None else touch_geometry(t)
+                            for t, g in zip(touches, geometries, strict=True)
+                        )
+                    with timed("checks"):
+                        check_tip_fits(touches, geometries, radius)
+                if len(touches) == 1:
+                    rec = _rank(
+                        touches[0], seen, method, progress, geometries[0], run, bool(cascade)
                     )
-                with timed("checks"):
-                    check_tip_fits(touches, geometries, radius)
-            if len(touches) == 1:
-                rec = _rank(
-                    touches[0], seen, method, progress, geometries[0], run, bool(cascade)
-                )
-                rec = _with_verdict(rec, {}, seen, method, run)
-            else:
-                rec, fits = _rank_joint(
-                    touches, seen, method, progress, geometries, run, bool(cascade)
-                )
-                rec = _with_verdict(rec, fits, seen, method, run)
-            with timed("freedom"):
-                rec = _with_pose_freedom(rec, seen)
-            with timed("cautions"):
-                _warn_coarse(rec, models)
-                warn_sharp_edges(rec, seen)
-            if radius == 0.0:
-                with timed("probe_offset"):
-                    rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
-    finally:
-        if own:
-            run.close()
-        # Pass every warning on as before (the caller's filters decide what is shown),
-        # also when the recognition fails; the result keeps their text.
-        raised = list(caught)
-        for w in raised:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
-    texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
-    return dataclasses.replace(
-        rec, warnings=texts, seconds=time.perf_counter() - t0, probe_radius=radius
-    )
+                    rec = _with_verdict(rec, {}, seen, method, run)
+                else:
+                    rec, fits = _rank_joint(
+                        touches, seen, method, progress, geometries, run, bool(cascade)
+                    )
+                    rec = _with_verdict(rec, fits, seen, method, run)
+                with timed("freedom"):
+                    rec = _with_pose_freedom(rec, seen)
+                with timed("cautions"):
+                    _warn_coarse(rec, models)
+                    warn_sharp_edges(rec, seen)
+                if radius == 0.0:
+                    with timed("probe_offset"):
+                        rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
+        finally:
+            if own:
+                run.close()
+            # Pass every warning on as before (the caller's filters decide what is shown),
+            # also when the recognition fails; the result keeps their text.
+            raised = list(caught)
+            for w in raised:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
+        return dataclasses.replace(
+            rec,
+            warnings=texts,
+            seconds=time.perf_counter() - t0,
+            probe_radius=radius,
+            phase_times=clock.times(),
+        )
 
 
 def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
