@@ -57,6 +57,8 @@ _WHERE = {
     "screen_library": "meshrec.recognition.screen",
     "screen_survivors": "meshrec.recognition.screen",
     "recognize": "meshrec.recognition.recognize",
+    "ProbeOffset": "meshrec.recognition.probing",
+    "PhaseTimes": "meshrec.recognition.phases",
     "ModelScore": "meshrec.recognition.scoring",
     "VERDICTS": "meshrec.recognition.scoring",
     "Verdict": "meshrec.recognition.scoring",
@@ -113,6 +115,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.recognition.edges import SharpEdgeWarning
     from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
+    from meshrec.recognition.phases import PhaseTimes
+    from meshrec.recognition.probing import ProbeOffset
     from meshrec.recognition.recognize import Recognition, recognize
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
     from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
@@ -154,9 +158,11 @@ __all__ = [
     "ModelIndex",
     "ModelLibrary",
     "ModelScore",
+    "PhaseTimes",
     "PhiBrackets",
     "PoseFreedom",
     "PoseHypothesis",
+    "ProbeOffset",
     "ProbeOffsetWarning",
     "Recognition",
     "RefinedSearch",

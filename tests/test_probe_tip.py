@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import meshrec
+from meshrec import defaults
 from meshrec.contact.probe import ProbeOffsetWarning, check_probe_radius, surface_geometry
 from meshrec.model.probe import ProbeSurface, probe_model, probe_radius_of
 from meshrec.registration.objective import mean_distances, residuals
@@ -221,6 +222,7 @@ def test_recognition_with_the_tip_radius_finds_the_surface_contact(models, shape
     assert rec.best.model == shape
     assert rec.probe_radius == TIP
     assert not tip_warnings
+    assert rec.probe_offset is None  # the radius was given: no check
     c = rec.best.contact
     radius = np.linalg.norm(c if shape == "sphere" else c[:2])
     assert radius == pytest.approx(1.0, abs=2e-3)  # on the surface, not the offset
@@ -241,12 +243,25 @@ def test_a_tip_not_declared_is_caught_and_no_tip_is_not(models):
     # the radius it names is the tip's, to the noise
     said = float(text.split("the data lie about ")[1].split()[0])
     assert said == pytest.approx(TIP, rel=0.2)
+    # the evidence kept: the radius named, the RMS and its drop beyond the chi-squared
+    # limit, the linearised drop within 2% of the refined one (probing's measurement)
+    found = rec.probe_offset
+    assert f"{found.radius:.3g}" == text.split("the data lie about ")[1].split()[0]
+    assert f"RMS {found.rms:.3g} against {found.rms0:.3g}" in text
+    points = tipped.touch.points
+    drop = len(points) * (found.rms0**2 - found.rms**2)
+    assert drop / rec.noise**2 > defaults.PROBE_OFFSET_CHI2
+    assert found.linear_drop == pytest.approx(drop, rel=0.02)
     for seed in (1, 2):
         plain = _touch(models["tube"], 0.0, seed=seed)
         rec, caught = _recognise(plain.touch, library)
         assert rec.best.model == "tube"
         assert not caught
         assert not any("ball tip" in w for w in rec.warnings)
+        # checked, and not warned: R about 0 or no drop beyond the noise
+        assert rec.probe_offset is not None
+        drop = plain.touch.n_points * (rec.probe_offset.rms0**2 - rec.probe_offset.rms**2)
+        assert drop <= defaults.PROBE_OFFSET_CHI2 * max(rec.noise, rec.probe_offset.rms) ** 2
 
 
 def test_the_touch_json_carries_the_radius(models, tmp_path):
@@ -443,7 +458,11 @@ def test_an_object_not_in_the_library_gets_no_tip_suggestion(tmp_path):
     # only the share of the misfit it explains keeps the warning off
     points = np.vstack([t.points for t in touches])
     model = library[rec.best.model]
-    radius, rms0, rms = probe_offset(points, model, rec.best.T_model_touch, rec.noise)
+    found = probe_offset(points, model, rec.best.T_model_touch, rec.noise)
+    radius, rms0, rms = found.radius, found.rms0, found.rms
+    # the recognition's own check weighed the same evidence (its min_gain skips nothing
+    # here: the drop is above the chi-squared limit)
+    assert rec.probe_offset == found
     gain = len(points) * (rms0**2 - rms**2) / max(rec.noise, rms) ** 2
     assert gain > defaults.PROBE_OFFSET_CHI2
     assert radius > defaults.PROBE_OFFSET_MIN_NOISE * rec.noise

@@ -125,7 +125,9 @@ def test_probe_offset_searches_over_r_when_the_joint_fit_stalls(models, monkeypa
         return OffsetRefinement(np.array(T0), 0.0, rms0, rms0, 1, linear_drop=1.0)
 
     monkeypatch.setattr(probing, "refine_offset", stalled)
-    radius, rms_zero, rms = probing.probe_offset(points, m, T_true, 1e-3)
+    found = probing.probe_offset(points, m, T_true, 1e-3)
+    radius, rms_zero, rms = found.radius, found.rms0, found.rms
+    assert found.linear_drop == 1.0  # the stand-in's, passed on
     assert rms_zero == rms0
     assert radius == pytest.approx(0.1, abs=0.01)
     assert rms < 1.2e-3 < rms0 / 3  # down to the noise (1e-3 per coordinate)

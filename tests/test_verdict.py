@@ -89,6 +89,9 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert "not in the library" in rec.reason
     # it looked harder (a widened lookup, then more candidates) before concluding
     assert rec.widened_seconds > 0
+    assert rec.phase_times.widened > 0
+    assert rec.phase_times.dense > 0
+    assert rec.phase_times.best_first == 0.0  # one touch: no joint phase
     assert any("widened" in w for w in rec.warnings)
     assert any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
     # no paper surface has a site this curved even in the widened window, so the dense

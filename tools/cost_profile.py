@@ -5,9 +5,10 @@ cache, on the 12 seeded touches of ``tools/speed.py`` (``bench.paper_touch``, se
 
 1. CPU seconds per stage: each registration's ``StageTimes`` taken with
    ``time.process_time`` instead of the wall clock (lookup, phi grid and its refinement,
-   screening, local searches, final refinements), and the work of ``recognize`` outside
-   the registrations (the contact's curve fits, the unit check, the pose freedom, the
-   probe-offset check after the verdict).
+   screening, local searches, final refinements), and the phases of ``recognize`` as
+   ``Recognition.phase_times`` gives them (CPU: the first touch's registrations as a
+   whole, the contact's curve fits, the checks, the scores, the pose freedom, the
+   warnings, the probe-offset check after the verdict, the rest).
 2. The phi grid by bounds (``meshrec.registration.bounded``) started from a per-point
    lower bound ``max(d - s, 0)`` instead of 0, ``d`` the exact distance and ``s`` a
    slack: what a distance grid with error at most ``s`` would give it (a grid of unsigned
@@ -49,7 +50,6 @@ from pathlib import Path
 import numpy as np
 
 import meshrec
-import meshrec.recognition.recognize as recognize_module
 import meshrec.registration.bounded as bounded
 import meshrec.registration.brackets as brackets
 import meshrec.registration.register as register_module
@@ -57,7 +57,9 @@ from meshrec import bench
 from meshrec.registration.objective import point_distances
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
-OUTSIDE = ("touch_geometry", "check_units", "_with_pose_freedom", "warn_probe_offset")
+#: The phases of Recognition.phase_times shown (one touch: the joint phases are 0).
+PHASES = ("first", "geometry", "checks", "widened", "dense", "scoring", "freedom", "cautions",
+          "probe_offset")
 
 
 class _ProcessClock:
@@ -68,24 +70,10 @@ class _ProcessClock:
 
 
 def _stage_cpu(library, touches, out: list[str]) -> None:
-    spent = dict.fromkeys(OUTSIDE, 0.0)
-    originals = {name: getattr(recognize_module, name) for name in OUTSIDE}
-
-    def timed(name):
-        def call(*args, **kwargs):
-            c0 = time.process_time()
-            try:
-                return originals[name](*args, **kwargs)
-            finally:
-                spent[name] += time.process_time() - c0
-
-        return call
-
     register_module.time = _ProcessClock
-    for name in OUTSIDE:
-        setattr(recognize_module, name, timed(name))
     try:
-        stages = register_module.StageTimes()
+        stages = meshrec.StageTimes()
+        spent = dict.fromkeys((*PHASES, "other"), 0.0)
         total = 0.0
         for touch in touches:
             c0 = time.process_time()
@@ -93,20 +81,23 @@ def _stage_cpu(library, touches, out: list[str]) -> None:
             total += time.process_time() - c0
             for r in rec.ranking:
                 stages = stages + r.times
+            for name in PHASES:
+                spent[name] += getattr(rec.phase_times, name)
+            spent["other"] += rec.phase_times.other
     finally:
         register_module.time = time
-        for name in OUTSIDE:
-            setattr(recognize_module, name, originals[name])
     n = len(touches)
     out.append(f"### CPU per recognition: {total / n:.3f} s (mean of {n} touches)\n")
+    out.append("Stages: every registration's ``StageTimes`` on CPU; phases: "
+               "``Recognition.phase_times`` (the stages run within ``first``, "
+               "``widened`` and ``dense``).\n")
     out.append("| part | CPU s per recognition | share |")
     out.append("|---|---:|---:|")
     for key in ("lookup", "phi", "screen", "search", "refine"):
         v = getattr(stages, key) / n
         out.append(f"| stage {key} | {v:.3f} | {v * n / total:.0%} |")
-    for name in OUTSIDE:
-        v = spent[name] / n
-        out.append(f"| {name} | {v:.4f} | {v * n / total:.1%} |")
+    for name, v in spent.items():
+        out.append(f"| phase {name} | {v / n:.4f} | {v / total:.1%} |")
     out.append("")
 
 

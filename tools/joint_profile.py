@@ -2,25 +2,24 @@
 
 The objects of ``tools/touches.py`` (the same shape set, seeded poses and touches: its
 generator is drawn from in the same order), each recognised from its first touch alone
-and from its three touches. Each phase's CPU time (``time.process_time``) is taken by
-wrapping the function that runs it where the recognition calls it (its exclusive time:
-a phase nested in another, such as the joint refinement inside the pair search, counts
-only for itself):
+and from its three touches. Each phase's CPU time (``time.process_time``) is read from
+``Recognition.phase_times`` (:class:`meshrec.PhaseTimes`: each phase's exclusive time,
+the parts of a joint phase within it), the whole call's measured around it:
 
-- ``first touch``: the first touch registered alone on every model (the cascade);
+- ``first touch``: the first touch registered alone on every model (the cascade), and
+  its poses scored on every touch;
 - ``best-first: ...``: the best-first joint fits (``meshrec.recognition.bestfirst``):
-  the stages of touches 2 and 3 registered alone (lookup, phi grid, screening, phi
-  refinement, local searches, search refinement) and the joint refinements (with the
-  harder search's seeds);
+  touches 2 and 3 registered alone, the joint refinements (with the harder search's
+  seeds), and its own work (the bounds);
 - ``adequacy: ...``: the search adequacy step (its single-touch registrations, the pair
-  seeds, their joint refinements);
-- ``near-symmetries``, ``widened pass``, ``scoring``, ``probe-offset check``,
-  ``pose freedom``, ``other`` (the rest: curve fits, unit checks, warnings).
+  seeds, their joint refinements, its own work);
+- ``near-symmetries``, ``widened pass``, ``dense pass``, ``scoring``, ``pose freedom``,
+  ``warnings`` (coarse models, sharp edges), ``probe-offset check``, ``curve fits``,
+  ``checks``, ``other`` (the rest of the call as measured around it).
 
 Prints a Markdown table (medians over the objects, and the sum) and each object's line.
-It wraps meshrec's internal functions (as ``tools/cost_profile.py`` does), so it
-measures this checkout's code path, not only its public API; the answers are not
-changed by the wrapping.
+Public API only: it measures the recognition as any caller runs it (in this process,
+serially).
 
     PYTHONPATH=. .venv/bin/python tools/joint_profile.py --sets 7 \
         --families ellipsoid bumped_sphere [--objects 0 3] [--cprofile FILE]
@@ -42,73 +41,36 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import meshrec
-import meshrec.recognition.bestfirst as bestfirst_module
-import meshrec.recognition.joint as joint_module
-import meshrec.recognition.recognize as recognize_module
-import meshrec.registration.register as register_module
 from meshrec import bench
 
 LENGTH, NOISE = 0.3, 0.002  # tools/touches.py's three touches
 
-# (module, function name, phase label); a label starting with "/" is a sub-phase: it
-# takes the enclosing phase's label as its prefix.
-_WRAPPED = [
-    (recognize_module, "cascade_register", "first touch"),
-    (recognize_module, "_rank", "first touch"),
-    (recognize_module, "first_touch_fit", "first touch"),
-    (recognize_module, "fit_best_first", "best-first"),
-    (bestfirst_module, "register_touches", "best-first"),
-    (recognize_module, "_search_adequately", "adequacy"),
-    (recognize_module, "_explore_near_symmetries", "near-symmetries"),
-    (recognize_module, "_widened", "widened pass"),
-    (recognize_module, "_score", "scoring"),
-    (recognize_module, "flat_prior", "scoring"),
-    (recognize_module, "warn_probe_offset", "probe-offset check"),
-    (recognize_module, "_with_pose_freedom", "pose freedom"),
-    (joint_module, "pair_seeds", "/pair seeds"),
-    (joint_module, "joint_poses", "/joint refinement"),
-    # the stages of every registration alone (the first touch's, touches 2 and 3's)
-    (register_module, "lookup_candidates", "/lookup"),
-    (register_module, "phi_brackets", "/phi grid"),
-    (register_module, "screen_candidates", "/screening"),
-    (register_module, "refine_phis", "/phi refinement"),
-    (register_module, "search_candidates", "/local searches"),
-    (register_module, "refine_searches", "/search refinement"),
+#: (label, the CPU seconds of a PhaseTimes p); "other" is added from the measured total.
+_PHASES = [
+    ("first touch", lambda p: p.first),
+    ("best-first: touches registered alone", lambda p: p.best_first_alone),
+    ("best-first: joint refinements", lambda p: p.best_first_joint),
+    ("best-first: own work", lambda p: p.best_first - p.best_first_alone - p.best_first_joint),
+    ("adequacy: touches registered alone", lambda p: p.adequacy_alone),
+    ("adequacy: pair seeds", lambda p: p.adequacy_pairs),
+    ("adequacy: joint refinements", lambda p: p.adequacy_joint),
+    (
+        "adequacy: own work",
+        lambda p: p.adequacy - p.adequacy_alone - p.adequacy_pairs - p.adequacy_joint,
+    ),
+    ("near-symmetries", lambda p: p.symmetries),
+    ("widened pass", lambda p: p.widened),
+    ("dense pass", lambda p: p.dense),
+    ("scoring", lambda p: p.scoring),
+    ("pose freedom", lambda p: p.freedom),
+    ("warnings", lambda p: p.cautions),
+    ("probe-offset check", lambda p: p.probe_offset),
+    ("curve fits", lambda p: p.geometry),
+    ("checks", lambda p: p.checks),
 ]
-
-
-class _Clock:
-    """Exclusive CPU time per label, with a stack of the labels running."""
-
-    def __init__(self):
-        self.spent: dict[str, float] = {}
-        self.stack: list[list] = []  # [label, start, time of the wrapped calls inside]
-
-    def wrap(self, fn, label):
-        def call(*args, **kwargs):
-            parent = self.stack[-1][0] if self.stack else None
-            if label.startswith("/"):
-                full = (parent.split("/")[0] if parent else "other") + ":" + label[1:]
-            else:
-                full = label if parent is None else parent
-            frame = [full, time.process_time(), 0.0]
-            self.stack.append(frame)
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                self.stack.pop()
-                took = time.process_time() - frame[1]
-                self.spent[full] = self.spent.get(full, 0.0) + took - frame[2]
-                if self.stack:
-                    self.stack[-1][2] += took
-
-        return call
-
-
-def _stage(label: str) -> bool:
-    """Whether a label is a stage of a registration alone (touches 2 and 3)."""
-    stages = {label[1:] for _, _, label in _WRAPPED[-6:]}
-    return ":" in label and label.split(":", 1)[1] in stages
+#: The registrations alone: what three touches would cost with every joint step free.
+_ALONE = ("first touch", "best-first: touches registered alone",
+          "adequacy: touches registered alone")
 
 
 def _world(rng) -> np.ndarray:
@@ -138,8 +100,7 @@ def _objects(seed, families, folder, cache_dir):
     return library, out
 
 
-def _timed(clock, touches, library, prof=None):
-    clock.spent = {}
+def _timed(touches, library, prof=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if prof is not None:
@@ -149,8 +110,8 @@ def _timed(clock, touches, library, prof=None):
         total = time.process_time() - c0
         if prof is not None:
             prof.disable()
-    spent = dict(clock.spent)
-    spent["other"] = spent.get("other", 0.0) + total - sum(spent.values())
+    spent = {label: get(rec.phase_times) for label, get in _PHASES}
+    spent["other"] = total - sum(rec.phase_times.phases().values())
     return rec, total, spent
 
 
@@ -162,9 +123,6 @@ def main(argv=None) -> int:
     p.add_argument("--cache-dir", default=None)
     p.add_argument("--cprofile", type=Path, default=None, help="cProfile of the 3-touch runs")
     args = p.parse_args(argv)
-    clock = _Clock()
-    for module, name, label in _WRAPPED:
-        setattr(module, name, clock.wrap(getattr(module, name), label))
     prof = cProfile.Profile() if args.cprofile else None
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -175,8 +133,8 @@ def main(argv=None) -> int:
             for i, (name, three) in enumerate(objects):
                 if args.objects is not None and i not in args.objects:
                     continue
-                _, t1, s1 = _timed(clock, three[0], library)
-                rec, t3, s3 = _timed(clock, three, library, prof)
+                _, t1, s1 = _timed(three[0], library)
+                rec, t3, s3 = _timed(three, library, prof)
                 rows.append((seed, name, t1, t3, s1, s3, rec))
                 print(
                     f"set {seed} {name:<20} one {t1:6.2f} s three {t3:6.2f} s "
@@ -211,10 +169,7 @@ def main(argv=None) -> int:
     print(f"\nthree over one: median {statistics.median(ratios):.2f}, max {max(ratios):.2f}")
     # The registrations alone (the first touch's, and touches 2 and 3's on the models that
     # registered them): what three touches would cost with every joint step free.
-    alone = [
-        sum(v for k, v in r[5].items() if k.startswith("first touch") or _stage(k)) / r[2]
-        for r in rows
-    ]
+    alone = [sum(r[5][k] for k in _ALONE) / r[2] for r in rows]
     print(
         f"three over one with only the registrations alone (every joint step free): median "
         f"{statistics.median(alone):.2f}, min {min(alone):.2f}, max {max(alone):.2f}"

@@ -7,11 +7,13 @@ Touches recognised without a radius (warm cache, in-process), as in the ball-tip
 2. the tests' sphere (radius 1) and tube (radius 1, side only): one touch per tip in
    ``0`` and ``--tips`` and seed in 1-3 (noise 1e-3, curves 0.6 long), against both.
 
-For each: the best model, whether a ``ProbeOffsetWarning`` was raised, ``probe_offset``'s
-radius, rms0 and rms, the drop of the sum of squares in noise variances that the warning's
-chi-squared test reads, and the drop that the residuals linearised at the rigid optimum
-predict (``meshrec.registration.refine``'s ``_linear_gain``, which decides the skip), and
-the CPU seconds of the check. Prints a Markdown table (and writes it with ``--out``)::
+For each: the best model, whether a ``ProbeOffsetWarning`` was raised, and the check's
+evidence as the recognition keeps it (``Recognition.probe_offset``, a ``ProbeOffset``):
+its radius, rms0 and rms, the drop of the sum of squares in noise variances that the
+warning's chi-squared test reads, and the drop that the residuals linearised at the rigid
+optimum predict (``ProbeOffset.linear_drop``, which decides the skip), and the CPU seconds
+of the check (``Recognition.phase_times.probe_offset``). Public API only. Prints a
+Markdown table (and writes it with ``--out``)::
 
     python tools/probe_offset_cases.py --out reports/probe_offset.md
 """
@@ -21,16 +23,12 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
 from _report import finish  # tools/_report.py
 
 import meshrec
-import meshrec.recognition.probing as probing
-import meshrec.recognition.recognize as recognize_module
-import meshrec.registration.refine as refine_module
 from meshrec import bench
 from meshrec.contact.probe import ProbeOffsetWarning
 
@@ -38,51 +36,22 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from analytic_meshes import index_of, sphere, tube  # noqa: E402 (the tests' meshes)
 
-_SEEN: dict = {}
-
-
-def _spy() -> None:
-    """Record probe_offset's answers, the linearised drop and the check's CPU time."""
-    # A spy on the module's own functions (as tools/cost_profile.py's stage clocks): the
-    # private _linear_gain is read, not re-implemented.
-    offset, warn = probing.probe_offset, recognize_module.warn_probe_offset
-    gain = refine_module._linear_gain
-
-    def probe_offset(points, model, T, noise, **kwargs):
-        _SEEN["offset"] = offset(points, model, T, noise, **kwargs)
-        _SEEN["n"], _SEEN["noise"] = len(points), noise
-        return _SEEN["offset"]
-
-    def linear_gain(*args):
-        _SEEN["linear"] = gain(*args)
-        return _SEEN["linear"]
-
-    def warn_probe_offset(*args, **kwargs):
-        c0 = time.process_time()
-        try:
-            return warn(*args, **kwargs)
-        finally:
-            _SEEN["cpu"] = time.process_time() - c0
-
-    probing.probe_offset = probe_offset
-    refine_module._linear_gain = linear_gain
-    recognize_module.warn_probe_offset = warn_probe_offset
-
 
 def _row(label: str, touch, library) -> str:
-    _SEEN.clear()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         rec = meshrec.recognize(touch, library)
     warned = sum(issubclass(w.category, ProbeOffsetWarning) for w in caught)
-    if "offset" not in _SEEN:
+    found = rec.probe_offset
+    if found is None:
         return f"| {label} | {rec.best.model if rec.best else '-'} | {warned} | | | | | | |"
-    radius, rms0, rms = _SEEN["offset"]
-    var = _SEEN["noise"] ** 2
-    drop = _SEEN["n"] * (rms0**2 - rms**2) / var
-    linear = _SEEN.get("linear", float("nan")) / var
-    return (f"| {label} | {rec.best.model} | {warned} | {radius:.4g} | {rms0:.4g} | {rms:.4g} | "
-            f"{drop:.3g} | {linear:.3g} | {_SEEN['cpu']:.4f} |")
+    n = sum(t.n_points for t in rec.touches)
+    var = rec.noise**2
+    drop = n * (found.rms0**2 - found.rms**2) / var
+    linear = found.linear_drop / var
+    return (f"| {label} | {rec.best.model} | {warned} | {found.radius:.4g} | {found.rms0:.4g} | "
+            f"{found.rms:.4g} | {drop:.3g} | {linear:.3g} | "
+            f"{rec.phase_times.probe_offset:.4f} |")
 
 
 def main(argv=None) -> int:
@@ -92,7 +61,6 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=None, help="Markdown report (default: stdout)")
     args = p.parse_args(argv)
     warnings.simplefilter("ignore")
-    _spy()
     shown = " ".join(sys.argv[1:] if argv is None else argv)
     out = ["# The probe-offset check, case by case", "",
            f"Command: `python tools/probe_offset_cases.py {shown}`", "",

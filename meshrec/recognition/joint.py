@@ -28,6 +28,7 @@ from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
+from meshrec.recognition.phases import timed
 from meshrec.recognition.scoring import (
     effective_points,
     fit_p_value,
@@ -447,43 +448,46 @@ def register_touches(
         raise ValueError(f"upto must be an integer in [1, {len(touches)}], got {upto!r}")
     t0 = time.perf_counter()
     single = list(previous.single) if previous is not None else []
-    for k in range(len(single), upto):
-        # The first touch is registered as one touch alone would be; the others only seed
-        # the joint refinement, where the touches registered before constrain the pose.
-        searches = defaults.LOCAL_SEARCHES if k == 0 else defaults.JOINT_EXTRA_SEARCHES
-        single.append(
-            register(
-                touches[k],
-                model,
-                geometry=geometries[k],
-                method=method,
-                lookup_scale=lookup_scale,
-                searches=searches,
-                trace=True,
+    with timed("alone"):
+        for k in range(len(single), upto):
+            # The first touch is registered as one touch alone would be; the others only
+            # seed the joint refinement, where the touches registered before constrain the
+            # pose.
+            searches = defaults.LOCAL_SEARCHES if k == 0 else defaults.JOINT_EXTRA_SEARCHES
+            single.append(
+                register(
+                    touches[k],
+                    model,
+                    geometry=geometries[k],
+                    method=method,
+                    lookup_scale=lookup_scale,
+                    searches=searches,
+                    trace=True,
+                )
             )
-        )
     # Seeds: the joint poses already found (refined ones converge at once) and the poses
     # of the touches newly registered alone.
     done = len(previous.single) if previous is not None else 0
     seeds = [p.T_model_touch for p in previous.registration.poses] if previous else []
     seeds += [p.T_model_touch for reg in single[done:] for p in reg.poses]
     t1 = time.perf_counter()
-    poses = joint_poses(model, touches, seeds, geometries[0], hopeless_rms=hopeless_rms)
-    n = int(sum(t.n_points for t in touches))
-    if (
-        noise is not None
-        and upto == len(touches)
-        and (not poses or fit_p_value(poses[0].rms, n, noise) < defaults.WIDEN_P_VALUE)
-    ):
-        more = [T for reg in single for T in candidate_seeds(reg)]
-        found = (
-            joint_poses(model, touches, more, geometries[0], hopeless_rms=hopeless_rms)
-            if more
-            else ()
-        )
-        poses = distinct_poses(
-            sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
-        )
+    with timed("joint"):
+        poses = joint_poses(model, touches, seeds, geometries[0], hopeless_rms=hopeless_rms)
+        n = int(sum(t.n_points for t in touches))
+        if (
+            noise is not None
+            and upto == len(touches)
+            and (not poses or fit_p_value(poses[0].rms, n, noise) < defaults.WIDEN_P_VALUE)
+        ):
+            more = [T for reg in single for T in candidate_seeds(reg)]
+            found = (
+                joint_poses(model, touches, more, geometries[0], hopeless_rms=hopeless_rms)
+                if more
+                else ()
+            )
+            poses = distinct_poses(
+                sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
+            )
     return _fit(model, touches, single, poses, time.perf_counter() - t1, t0)
 
 
@@ -532,16 +536,18 @@ def search_pairs(
         As :func:`pair_seeds` and :func:`joint_poses`.
     """
     t0 = time.perf_counter()
-    seeds = pair_seeds(touches, model, geometries, lookup_scale=lookup_scale)
-    found = joint_poses(
-        model,
-        touches,
-        seeds,
-        geometries[0],
-        best=defaults.PAIR_REFINE_SEEDS,
-        start_ratio=np.inf,
-        hopeless_rms=hopeless_rms,
-    )
+    with timed("pairs"):
+        seeds = pair_seeds(touches, model, geometries, lookup_scale=lookup_scale)
+    with timed("joint"):
+        found = joint_poses(
+            model,
+            touches,
+            seeds,
+            geometries[0],
+            best=defaults.PAIR_REFINE_SEEDS,
+            start_ratio=np.inf,
+            hopeless_rms=hopeless_rms,
+        )
     return _with_poses(model, touches, geometries, previous, found, t0)
 
 

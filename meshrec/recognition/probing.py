@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,7 +22,38 @@ from meshrec.io.checks import check_number
 from meshrec.model.probe import probe_model
 from meshrec.registration.refine import refine_offset, refine_rigid
 
-__all__ = ["check_tip_fits", "probe_offset", "touch_probe_radius", "warn_probe_offset"]
+__all__ = [
+    "ProbeOffset",
+    "check_tip_fits",
+    "probe_offset",
+    "touch_probe_radius",
+    "warn_probe_offset",
+]
+
+
+@dataclass(frozen=True)
+class ProbeOffset:
+    """The evidence of :func:`probe_offset`: the tip radius that best explains a fit.
+
+    Attributes
+    ----------
+    radius : float
+        The best R, data units (0 when no R > 0 fits better than the surface itself).
+    rms0 : float
+        RMS distance at R = 0, after rigid refinement.
+    rms : float
+        RMS distance at ``radius``, after refinement (``rms0`` when ``radius`` is 0).
+    linear_drop : float
+        The drop of the sum of squares that the residuals linearised at the rigid optimum
+        predict with any pose and any R
+        (:attr:`~meshrec.registration.refine.OffsetRefinement.linear_drop`), squared data
+        units: below ``min_gain * noise**2`` the joint refinement was skipped.
+    """
+
+    radius: float
+    rms0: float
+    rms: float
+    linear_drop: float
 
 
 def touch_probe_radius(touches, probe_radius) -> float:
@@ -93,7 +125,7 @@ def check_tip_fits(touches, geometries, radius: float) -> None:
 
 def probe_offset(
     points, model, T_model_touch, noise: float, min_gain: float = 0.0
-) -> tuple[float, float, float]:
+) -> ProbeOffset:
     """The tip radius that best explains the fit of touch data to a model, and its evidence.
 
     The data are refined rigidly onto the model's surface (from ``T_model_touch``), then
@@ -129,10 +161,9 @@ def probe_offset(
 
     Returns
     -------
-    radius : float
-        The best R, data units.
-    rms0, rms : float
-        RMS distance at R = 0 and at ``radius``, both after rigid refinement.
+    ProbeOffset
+        The best R (``radius``, data units), the RMS distances at R = 0 and at it
+        (``rms0``, ``rms``, both after refinement) and the linearised drop.
 
     Raises
     ------
@@ -171,8 +202,8 @@ def probe_offset(
     else:
         radius, rms = joint.radius, joint.rms
     if not rms < rigid.rms:
-        return 0.0, rigid.rms, rigid.rms
-    return radius, rigid.rms, rms
+        return ProbeOffset(0.0, rigid.rms, rigid.rms, joint.linear_drop)
+    return ProbeOffset(radius, rigid.rms, rms, joint.linear_drop)
 
 
 def _parabola_search(points, model, T_model_touch, r_max: float, rms0: float):
@@ -216,7 +247,7 @@ def _half_length(points: np.ndarray) -> float:
     return float(np.linalg.norm(centred, axis=1).max())
 
 
-def warn_probe_offset(rec, models) -> None:
+def warn_probe_offset(rec, models) -> ProbeOffset | None:
     """Warn when touches recognised without a radius look taken with a ball tip.
 
     For the best model (every touch's points at its pose), :func:`probe_offset` finds the tip
@@ -232,10 +263,17 @@ def warn_probe_offset(rec, models) -> None:
     ----------
     rec : Recognition
     models : list of ModelIndex
+
+    Returns
+    -------
+    ProbeOffset or None
+        The evidence weighed (:func:`probe_offset` at the best model's pose, every
+        touch's points, ``min_gain`` as below), warned or not; None when there is no
+        best pose or no positive noise estimate (nothing was checked).
     """
     best = rec.best
     if best is None or best.T_model_touch is None or not rec.noise > 0:
-        return
+        return None
     model = {m.name: m for m in models}[best.model]
     points = np.vstack([t.points for t in rec.touches or (rec.touch,)])
     # The test below needs n (rms0^2 - rms^2) > PROBE_OFFSET_CHI2 max(noise, rms)^2, so
@@ -247,13 +285,14 @@ def warn_probe_offset(rec, models) -> None:
     # 0.02 to 0.2 on the paper surfaces, a sphere and a tube; one and three touches): the
     # refined drop was within 2% of the linearised one wherever either was above 2 noise
     # variances (to 16% for three touches at 8e5), and at most 0.42 above it below that.
-    radius, rms0, rms = probe_offset(
+    found = probe_offset(
         points,
         model,
         best.T_model_touch,
         rec.noise,
         min_gain=defaults.PROBE_OFFSET_CHI2 / defaults.PROBE_OFFSET_LINEAR_MARGIN,
     )
+    radius, rms0, rms = found.radius, found.rms0, found.rms
     n = len(points)
     # The improvement is measured against the residual variance left with the offset, or
     # the noise if larger (an F-test of one added parameter): where the surface itself
@@ -263,14 +302,14 @@ def warn_probe_offset(rec, models) -> None:
     # "offset", 62 times the noise variance but 10 times the residual one).
     gain = n * (rms0**2 - rms**2) / max(rec.noise, rms) ** 2
     if gain <= defaults.PROBE_OFFSET_CHI2 or radius <= defaults.PROBE_OFFSET_MIN_NOISE * rec.noise:
-        return
+        return found
     excess = rms0**2 - rec.noise**2
     if excess > 0 and (rms0**2 - rms**2) < defaults.PROBE_OFFSET_EXPLAINED * excess:
         # The offset explains little of the misfit beyond the noise: a tip is not what is
         # wrong (a torus touched against a library of bumped spheres and ellipsoids, RMS
         # 27 times the noise, was trimmed by 5% at an "offset" of 0.08), and suggesting
         # one would mislead.
-        return
+        return found
     warnings.warn(
         f"the data lie about {radius:.3g} outside the surface of {best.model!r} (they fit "
         f"the surface offset by {radius:.3g} with RMS {rms:.3g} against {rms0:.3g} for the "
@@ -279,6 +318,7 @@ def warn_probe_offset(rec, models) -> None:
         ProbeOffsetWarning,
         stacklevel=4,
     )
+    return found
 
 
 def _round(x: float) -> str:

@@ -32,7 +32,13 @@ from meshrec.recognition.joint import (
     rms_out_of_reach,
     search_pairs,
 )
-from meshrec.recognition.probing import check_tip_fits, touch_probe_radius, warn_probe_offset
+from meshrec.recognition.phases import PhaseTimes, phase_clock, timed
+from meshrec.recognition.probing import (
+    ProbeOffset,
+    check_tip_fits,
+    touch_probe_radius,
+    warn_probe_offset,
+)
 from meshrec.recognition.scoring import (
     ModelScore,
     Verdict,
@@ -110,6 +116,16 @@ class Recognition:
         about a cylinder's axis is; a slide along it is not) the verdict is never
         ``recognised``: with one plausible model it is ``ambiguous`` with that model alone,
         and the reason says the model is named but the pose is not fixed.
+    probe_offset : ProbeOffset or None
+        The probe-offset check's evidence (:func:`meshrec.recognition.probing.probe_offset`
+        at the best model's pose: the tip radius that best explains the data, the RMS
+        without and with it, the linearised drop), whether it warned or not. None when
+        the check did not run (a probe radius given or read from the touches, no model
+        registered).
+    phase_times : PhaseTimes
+        CPU seconds of each phase of the recognition (``time.process_time``; see
+        :class:`~meshrec.recognition.phases.PhaseTimes`). Not part of the equality of two
+        recognitions (nor is anything about the answers in it).
     """
 
     touch: TouchData
@@ -129,6 +145,8 @@ class Recognition:
     touch_rms: tuple[float | None, ...] = ()
     probe_radius: float = 0.0
     pose_freedom: PoseFreedom | None = None
+    probe_offset: ProbeOffset | None = None
+    phase_times: PhaseTimes = dataclasses.field(default_factory=PhaseTimes, compare=False)
 
     @property
     def best(self) -> Registration | None:
@@ -244,66 +262,77 @@ def recognize(
     TypeError
         If ``cascade`` is not a bool or None.
     """
-    t0 = time.perf_counter()
-    touches = _touches(touch)
-    geometries = _geometries(geometry, len(touches))
-    check_choice(method, SEARCH_METHODS, "method")
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
-    if cascade is None:
-        cascade = defaults.CASCADE
-    if not isinstance(cascade, (bool, np.bool_)):
-        raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
-    if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
-        raise TypeError(
-            f"library must be a ModelLibrary or an iterable of ModelIndex, got "
-            f"{type(library).__name__}"
+    # The clock in this frame, not in a wrapper: the warnings' stack levels count from here.
+    with phase_clock() as clock:
+        t0 = time.perf_counter()
+        touches = _touches(touch)
+        geometries = _geometries(geometry, len(touches))
+        check_choice(method, SEARCH_METHODS, "method")
+        if progress is not None and not callable(progress):
+            raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
+        if cascade is None:
+            cascade = defaults.CASCADE
+        if not isinstance(cascade, (bool, np.bool_)):
+            raise TypeError(f"cascade must be a bool or None, got {type(cascade).__name__}")
+        if isinstance(library, (str, bytes)) or not hasattr(library, "__iter__"):
+            raise TypeError(
+                f"library must be a ModelLibrary or an iterable of ModelIndex, got "
+                f"{type(library).__name__}"
+            )
+        models = list(library)
+        for i, model in enumerate(models):
+            check_instance(model, ModelIndex, f"library[{i}]")
+        radius = touch_probe_radius(touches, probe_radius)
+        # the models as the ball's centres see them (themselves for a point probe); the
+        # resolution warnings are the plain models' own (their cached resolution)
+        seen = [probe_model(m, radius) for m in models]
+        caught: list = []
+        run, own = _runner(seen, workers, scheduler)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                if radius > 0.0:
+                    with timed("geometry"):
+                        geometries = tuple(
+                            g if g is not None else touch_geometry(t)
+                            for t, g in zip(touches, geometries, strict=True)
+                        )
+                    with timed("checks"):
+                        check_tip_fits(touches, geometries, radius)
+                if len(touches) == 1:
+                    rec = _rank(
+                        touches[0], seen, method, progress, geometries[0], run, bool(cascade)
+                    )
+                    rec = _with_verdict(rec, {}, seen, method, run)
+                else:
+                    rec, fits = _rank_joint(
+                        touches, seen, method, progress, geometries, run, bool(cascade)
+                    )
+                    rec = _with_verdict(rec, fits, seen, method, run)
+                with timed("freedom"):
+                    rec = _with_pose_freedom(rec, seen)
+                with timed("cautions"):
+                    _warn_coarse(rec, models)
+                    warn_sharp_edges(rec, seen)
+                if radius == 0.0:
+                    with timed("probe_offset"):
+                        rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
+        finally:
+            if own:
+                run.close()
+            # Pass every warning on as before (the caller's filters decide what is shown),
+            # also when the recognition fails; the result keeps their text.
+            raised = list(caught)
+            for w in raised:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
+        return dataclasses.replace(
+            rec,
+            warnings=texts,
+            seconds=time.perf_counter() - t0,
+            probe_radius=radius,
+            phase_times=clock.times(),
         )
-    models = list(library)
-    for i, model in enumerate(models):
-        check_instance(model, ModelIndex, f"library[{i}]")
-    radius = touch_probe_radius(touches, probe_radius)
-    # the models as the ball's centres see them (themselves for a point probe); the
-    # resolution warnings are the plain models' own (their cached resolution)
-    seen = [probe_model(m, radius) for m in models]
-    caught: list = []
-    run, own = _runner(seen, workers, scheduler)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if radius > 0.0:
-                geometries = tuple(
-                    g if g is not None else touch_geometry(t)
-                    for t, g in zip(touches, geometries, strict=True)
-                )
-                check_tip_fits(touches, geometries, radius)
-            if len(touches) == 1:
-                rec = _rank(
-                    touches[0], seen, method, progress, geometries[0], run, bool(cascade)
-                )
-                rec = _with_verdict(rec, {}, seen, method, run)
-            else:
-                rec, fits = _rank_joint(
-                    touches, seen, method, progress, geometries, run, bool(cascade)
-                )
-                rec = _with_verdict(rec, fits, seen, method, run)
-            rec = _with_pose_freedom(rec, seen)
-            _warn_coarse(rec, models)
-            warn_sharp_edges(rec, seen)
-            if radius == 0.0:
-                warn_probe_offset(rec, models)
-    finally:
-        if own:
-            run.close()
-        # Pass every warning on as before (the caller's filters decide what is shown),
-        # also when the recognition fails; the result keeps their text.
-        raised = list(caught)
-        for w in raised:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
-    texts = tuple(dict.fromkeys([str(w.message) for w in raised] + list(rec.warnings)))
-    return dataclasses.replace(
-        rec, warnings=texts, seconds=time.perf_counter() - t0, probe_radius=radius
-    )
 
 
 def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
@@ -503,17 +532,20 @@ def _rank(touch, library, method, progress, geometry, run, cascade=False) -> Rec
     models = list(library)
     if not models:
         raise ValueError("library must hold at least one model, got none")
-    check_units(touch, models)
+    with timed("checks"):
+        check_units(touch, models)
     if geometry is None:
-        geometry = touch_geometry(touch)
+        with timed("geometry"):
+            geometry = touch_geometry(touch)
     # Every model is registered on its own (the result of one never depends on another),
     # so the order of the models, or running them apart, changes nothing.
-    if cascade:
-        # the cascade's decisions here, its per-model batches on the workers
-        noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
-        results = cascade_register(touch, models, geometry, noise, method, progress, run=run)
-    else:
-        results = run.register_each(touch, models, geometry, method, progress=progress)
+    with timed("first"):
+        if cascade:
+            # the cascade's decisions here, its per-model batches on the workers
+            noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+            results = cascade_register(touch, models, geometry, noise, method, progress, run=run)
+        else:
+            results = run.register_each(touch, models, geometry, method, progress=progress)
     return _ranked(
         Recognition(
             touch=touch,
@@ -548,12 +580,15 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
     t0 = time.perf_counter()
     if not models:
         raise ValueError("library must hold at least one model, got none")
-    check_touch_sizes(touches)
-    for touch in touches:
-        check_units(touch, models)
-    geometries = tuple(
-        g if g is not None else touch_geometry(t) for t, g in zip(touches, geometries, strict=True)
-    )
+    with timed("checks"):
+        check_touch_sizes(touches)
+        for touch in touches:
+            check_units(touch, models)
+    with timed("geometry"):
+        geometries = tuple(
+            g if g is not None else touch_geometry(t)
+            for t, g in zip(touches, geometries, strict=True)
+        )
     rec = Recognition(
         touch=touches[0],
         geometry=geometries[0],
@@ -563,26 +598,30 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
         geometries=geometries,
     )
     noise, n = _noise_and_points(rec)
-    if cascade:
-        # The first touch through the cascade: a model it prunes fits the first touch
-        # alone far worse than the leaders, and a joint fit is worse still.
-        regs = cascade_register(
-            touches[0], models, geometries[0], None, method, progress, trace=True, run=run
-        )
-    else:
-        regs = run.register_each(
-            touches[0], models, geometries[0], method, trace=True, progress=progress
-        )
-    firsts = {
-        model.name: first_touch_fit(touches, model, first)
-        for model, first in zip(models, regs, strict=True)
-    }
+    with timed("first"):
+        if cascade:
+            # The first touch through the cascade: a model it prunes fits the first touch
+            # alone far worse than the leaders, and a joint fit is worse still.
+            regs = cascade_register(
+                touches[0], models, geometries[0], None, method, progress, trace=True, run=run
+            )
+        else:
+            regs = run.register_each(
+                touches[0], models, geometries[0], method, trace=True, progress=progress
+            )
+        firsts = {
+            model.name: first_touch_fit(touches, model, first)
+            for model, first in zip(models, regs, strict=True)
+        }
     # Most promising model first, each model a step (one more touch) at a time, until
     # it fits every touch to the noise or cannot become plausible (branch and bound:
     # meshrec.recognition.bestfirst).
-    fits = fit_best_first(touches, models, geometries, firsts, noise, method)
-    _search_adequately(touches, models, geometries, fits, noise, n, method)
-    _explore_near_symmetries(touches, models, geometries, fits, noise, n)
+    with timed("best_first"):
+        fits = fit_best_first(touches, models, geometries, firsts, noise, method)
+    with timed("adequacy"):
+        _search_adequately(touches, models, geometries, fits, noise, n, method)
+    with timed("symmetries"):
+        _explore_near_symmetries(touches, models, geometries, fits, noise, n)
     rec = dataclasses.replace(rec, seconds=time.perf_counter() - t0)
     return _ranked(rec, [f.registration for f in fits.values()]), fits
 
@@ -810,21 +849,23 @@ def _with_verdict(
     ``fits`` holds the joint fits of several touches by model (empty for one touch).
     """
     by_name = {m.name: m for m in models}
-    noise, n = _noise_and_points(rec)
-    t0 = time.perf_counter()
-    prior = None
-    if len(rec.touches) == 1:
-        # the shares of the registered models only (a KD-tree each): a model the lookup
-        # rejected has no flat site within the tolerance, its share 0, its weight the floor
-        fitted = [by_name[r.model] for r in rec.ranking if not r.rejected]
-        weights = flat_prior(rec.touch, rec.geometry, fitted) if fitted else None
-        if weights is not None:
-            floor = float(weights.max()) / defaults.FLAT_PRIOR_MAX_RATIO
-            prior = {m.name: floor for m in models}
-            prior.update({m.name: float(w) for m, w in zip(fitted, weights, strict=True)})
-    scores, noise = _score(rec, prior)
-    rec = _ordered(rec, scores)
-    t_score = time.perf_counter() - t0
+    with timed("scoring"):
+        noise, n = _noise_and_points(rec)
+        t0 = time.perf_counter()
+        prior = None
+        if len(rec.touches) == 1:
+            # the shares of the registered models only (a KD-tree each): a model the lookup
+            # rejected has no flat site within the tolerance, its share 0, its weight the
+            # floor
+            fitted = [by_name[r.model] for r in rec.ranking if not r.rejected]
+            weights = flat_prior(rec.touch, rec.geometry, fitted) if fitted else None
+            if weights is not None:
+                floor = float(weights.max()) / defaults.FLAT_PRIOR_MAX_RATIO
+                prior = {m.name: floor for m in models}
+                prior.update({m.name: float(w) for m, w in zip(fitted, weights, strict=True)})
+        scores, noise = _score(rec, prior)
+        rec = _ordered(rec, scores)
+        t_score = time.perf_counter() - t0
     t_wide = 0.0
     cautions = []
     if _fits_worse_than_noise(rec, n, noise):
@@ -835,9 +876,10 @@ def _with_verdict(
         t1 = time.perf_counter()
         if run is None:
             run = ModelWorkers(models, workers=1)
-        rec, capped = _widened(rec, fits, by_name, method, run)
-        scores, noise = _score(rec, prior)
-        rec = _ordered(rec, scores)
+        with timed("widened"):
+            rec, capped = _widened(rec, fits, by_name, method, run)
+            scores, noise = _score(rec, prior)
+            rec = _ordered(rec, scores)
         looked = "every model registered again"
         if len(rec.touches) == 1 and _fits_worse_than_noise(rec, n, noise):
             # Still nothing fits: where the widened window matches most of a model's sites
@@ -845,17 +887,18 @@ def _with_verdict(
             # look once more among more of them (on the models where the window held more
             # than the cap: the others would get the same candidates). Each model keeps
             # its best fit of all.
-            rec, _ = _widened(
-                rec,
-                fits,
-                by_name,
-                method,
-                run,
-                max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
-                only=capped,
-            )
-            scores, noise = _score(rec, prior)
-            rec = _ordered(rec, scores)
+            with timed("dense"):
+                rec, _ = _widened(
+                    rec,
+                    fits,
+                    by_name,
+                    method,
+                    run,
+                    max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
+                    only=capped,
+                )
+                scores, noise = _score(rec, prior)
+                rec = _ordered(rec, scores)
             looked = (
                 f"every model registered again, then once more with up to "
                 f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates where the window held more "
@@ -866,35 +909,38 @@ def _with_verdict(
             "the best fit was worse than the noise allows: the curvature lookup was widened "
             f"{defaults.LOOKUP_WIDEN_SCALE:g} times and {looked}"
         )
-    t1 = time.perf_counter()
-    names = [s.model for s in rec.scores]
-    probs = [s.probability for s in rec.scores]
-    top = rec.scores[0] if rec.scores else None
-    v = decide(names, probs, None if top is None else top.rms, n, noise)
-    if prior is not None:
-        v = _with_data_plausible(v, rec.scores, n, noise)
-        cautions.append(_flat_caution(rec.scores, prior))
-    reason = v.reason
-    for k, g in enumerate(rec.geometries):
-        if (
-            g.fit_to_noise > defaults.ROUGH_FIT_RATIO
-            and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
-        ):
-            which = f"touch {k + 1}'s curve fits" if len(rec.geometries) > 1 else "the curve fits"
-            cautions.append(
-                f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
-                "the curves may cross an edge, and the probabilities are less reliable"
-            )
-    best_reg = rec.best
-    if best_reg is None:
-        per_touch = (None,) * len(rec.touches)
-    elif len(rec.touches) == 1:
-        per_touch = (best_reg.rms,)
-    else:
-        per_touch = fits[best_reg.model].touch_rms
-        if v.verdict == "unknown":
-            reason = _joint_unknown_reason(rec, fits, by_name, noise) or reason
-    t_score += time.perf_counter() - t1
+    with timed("scoring"):
+        t1 = time.perf_counter()
+        names = [s.model for s in rec.scores]
+        probs = [s.probability for s in rec.scores]
+        top = rec.scores[0] if rec.scores else None
+        v = decide(names, probs, None if top is None else top.rms, n, noise)
+        if prior is not None:
+            v = _with_data_plausible(v, rec.scores, n, noise)
+            cautions.append(_flat_caution(rec.scores, prior))
+        reason = v.reason
+        for k, g in enumerate(rec.geometries):
+            if (
+                g.fit_to_noise > defaults.ROUGH_FIT_RATIO
+                and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
+            ):
+                which = (
+                    f"touch {k + 1}'s curve fits" if len(rec.geometries) > 1 else "the curve fits"
+                )
+                cautions.append(
+                    f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
+                    "the curves may cross an edge, and the probabilities are less reliable"
+                )
+        best_reg = rec.best
+        if best_reg is None:
+            per_touch = (None,) * len(rec.touches)
+        elif len(rec.touches) == 1:
+            per_touch = (best_reg.rms,)
+        else:
+            per_touch = fits[best_reg.model].touch_rms
+            if v.verdict == "unknown":
+                reason = _joint_unknown_reason(rec, fits, by_name, noise) or reason
+        t_score += time.perf_counter() - t1
     return dataclasses.replace(
         rec,
         verdict=v.verdict,
