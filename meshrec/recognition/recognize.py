@@ -231,7 +231,8 @@ def recognize(
         The ranking (most probable first) with the calibrated scores and the verdict
         (recognised, ambiguous or unknown; see :mod:`meshrec.recognition.scoring`). When
         even the best fit is worse than the noise allows, every model is registered again
-        with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict;
+        with the (K, H) lookup widened (``defaults.LOOKUP_WIDEN_SCALE``) before the verdict
+        (with several touches: each touch alone, then the search from pairs of touches);
         one touch that still fits nothing, once more with up to
         ``defaults.LOOKUP_DENSE_CANDIDATES`` candidates per model (each model keeps its best
         fit of all). Every warning raised inside is passed on as usual and its text kept in
