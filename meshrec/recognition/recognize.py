@@ -768,8 +768,10 @@ def _widened(
 ) -> tuple[Recognition, frozenset]:
     """Register every model again with the (K, H) window widened; keep each one's better fit.
 
-    With several touches, each is registered alone with the wider window; ``fits`` (the
-    joint fits, by model) is updated in place where the wider pass fits better. One touch
+    With several touches, each is registered alone with the wider window, then the
+    models whose joint fit may have been missed are searched from pairs of touches with it
+    (:func:`_search_adequately`); ``fits`` (the joint fits, by model) is updated in place
+    where the wider pass fits better. One touch
     may look at up to ``max_candidates`` candidates per model (None: the default number),
     and only the models named in ``only`` (None: all) are registered; the others are kept
     as they are.
