@@ -628,7 +628,15 @@ def _rank_joint(touches, models, method, progress, geometries, run, cascade=Fals
 
 
 def _search_adequately(
-    touches, models, geometries, fits: dict, noise: float, n: int, method, lookup_scale=1.0
+    touches,
+    models,
+    geometries,
+    fits: dict,
+    noise: float,
+    n: int,
+    method,
+    lookup_scale=1.0,
+    below=True,
 ):
     """Search again, from pairs of touches, every model whose joint pose may have been missed.
 
@@ -646,7 +654,9 @@ def _search_adequately(
     (:func:`~meshrec.recognition.joint.log_likelihood_bound`) still comes within that gap
     of the best, it is searched again from pairs of touches
     (:func:`~meshrec.recognition.joint.search_pairs`), both with the (K, H) window widened
-    by ``lookup_scale``. ``fits`` is updated in place.
+    by ``lookup_scale``. With ``below`` False only the models within the gap of the best
+    that fit worse than the noise qualify (the widened pass: the leaders, where a missed
+    pose turns the answer to ``unknown``). ``fits`` is updated in place.
     """
     searched = set()
     gap = defaults.PAIR_SEARCH_GAP
@@ -660,8 +670,11 @@ def _search_adequately(
             if m.name not in searched
             and not fits[m.name].registration.rejected
             and (
-                ll[names.index(m.name)] < leader - gap
-                or _fits_worse(fits[m.name].registration.rms, n, noise)
+                (below and ll[names.index(m.name)] < leader - gap)
+                or (
+                    ll[names.index(m.name)] >= leader - gap
+                    and _fits_worse(fits[m.name].registration.rms, n, noise)
+                )
             )
             and log_likelihood_bound(fits[m.name], touches, noise, geometries) >= leader - gap
         ]
@@ -822,8 +835,10 @@ def _widened(
         else:
             merged.append(reg)
     if len(rec.touches) > 1:
-        # Every touch registered alone with the wider window, but a joint pose missed
-        # still: the pairs of touches again, with the wider window too.
+        # Every touch registered alone with the wider window, but a leader's joint pose
+        # missed still: its pairs of touches again, with the wider window too (the
+        # leaders only: the models well below them were searched from pairs already, and
+        # searching them all again costs an out-of-library answer a third more time).
         noise, n = _noise_and_points(rec)
         present = [models[reg.model] for reg in merged if reg.model in fits]
         _search_adequately(
@@ -835,6 +850,7 @@ def _widened(
             n,
             method,
             lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            below=False,
         )
         merged = [fits[reg.model].registration if reg.model in fits else reg for reg in merged]
     return dataclasses.replace(rec, ranking=tuple(merged)), capped
