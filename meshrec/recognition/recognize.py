@@ -777,83 +777,86 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
 
 
 def _widened(
-    rec: Recognition, fits: dict, models: dict, method: str, run, max_candidates=None, only=None
+    rec: Recognition, models: dict, method: str, run, max_candidates=None, only=None
 ) -> tuple[Recognition, frozenset]:
-    """Register every model again with the (K, H) window widened; keep each one's better fit.
+    """One touch: register every model again with the (K, H) window widened; keep each
+    one's better fit.
 
-    With several touches, each is registered alone with the wider window, then the
-    models whose joint fit may have been missed are searched from pairs of touches with it
-    (:func:`_search_adequately`); ``fits`` (the joint fits, by model) is updated in place
-    where the wider pass fits better. One touch
-    may look at up to ``max_candidates`` candidates per model (None: the default number),
+    Each model may look at up to ``max_candidates`` candidates (None: the default number),
     and only the models named in ``only`` (None: all) are registered; the others are kept
     as they are.
 
-    Returns the merged recognition and, for one touch, the names of the models whose
-    widened lookup filled the cap (``defaults.MAX_CANDIDATES`` candidates): only for
-    them can a denser look choose other candidates (the spreading stops short of the cap
-    by the same rule whatever the cap, so a model under it would get the same candidates
-    and the same fit; a model with none, rejected, gets none again).
+    Returns the merged recognition and the names of the models whose widened lookup
+    filled the cap (``defaults.MAX_CANDIDATES`` candidates): only for them can a denser
+    look choose other candidates (the spreading stops short of the cap by the same rule
+    whatever the cap, so a model under it would get the same candidates and the same fit;
+    a model with none, rejected, gets none again).
+    """
+    todo = [reg for reg in rec.ranking if only is None or reg.model in only]
+    regs = run.register_each(
+        rec.touch,
+        [models[reg.model] for reg in todo],
+        rec.geometry,
+        method,
+        lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        max_candidates=max_candidates,
+    )
+    wides = {reg.model: wide for reg, wide in zip(todo, regs, strict=True)}
+    capped = frozenset(
+        name for name, wide in wides.items() if wide.candidates >= defaults.MAX_CANDIDATES
+    )
+    merged = []
+    for reg in rec.ranking:
+        wide = wides.get(reg.model, reg)
+        better = reg.rejected or (not wide.rejected and wide.error < reg.error)
+        merged.append(wide if better else reg)
+    return dataclasses.replace(rec, ranking=tuple(merged)), capped
+
+
+def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> Recognition:
+    """Several touches: every model's touches registered alone again with the (K, H)
+    window widened, jointly refined; each model keeps its better fit.
+
+    Then the leading models whose joint fit may still have been missed are searched from
+    pairs of touches with the wider window (:func:`_search_adequately`). ``fits`` (the
+    joint fits, by model) is updated in place where the wider pass fits better.
     """
     merged = []
-    wides = {}
-    capped = frozenset()
-    if len(rec.touches) == 1:
-        todo = [reg for reg in rec.ranking if only is None or reg.model in only]
-        regs = run.register_each(
-            rec.touch,
-            [models[reg.model] for reg in todo],
-            rec.geometry,
-            method,
-            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-            max_candidates=max_candidates,
-        )
-        wides = {reg.model: wide for reg, wide in zip(todo, regs, strict=True)}
-        capped = frozenset(
-            name for name, wide in wides.items() if wide.candidates >= defaults.MAX_CANDIDATES
-        )
-        wides.update({reg.model: reg for reg in rec.ranking if reg.model not in wides})
     for reg in rec.ranking:
-        if len(rec.touches) > 1:
-            fit = register_touches(
-                rec.touches,
-                models[reg.model],
-                rec.geometries,
-                upto=len(rec.touches),
-                method=method,
-                lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-                noise=_noise_and_points(rec)[0],
-            )
-            wide = fit.registration
-        else:
-            fit = None
-            wide = wides[reg.model]
+        fit = register_touches(
+            rec.touches,
+            models[reg.model],
+            rec.geometries,
+            upto=len(rec.touches),
+            method=method,
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+            noise=_noise_and_points(rec)[0],
+        )
+        wide = fit.registration
         if reg.rejected or (not wide.rejected and wide.error < reg.error):
             merged.append(wide)
-            if fit is not None:
-                fits[reg.model] = fit
+            fits[reg.model] = fit
         else:
             merged.append(reg)
-    if len(rec.touches) > 1:
-        # Every touch registered alone with the wider window, but a leader's joint pose
-        # missed still: its pairs of touches again, with the wider window too (the
-        # leaders only: the models well below them were searched from pairs already, and
-        # searching them all again costs an out-of-library answer a third more time).
-        noise, n = _noise_and_points(rec)
-        present = [models[reg.model] for reg in merged if reg.model in fits]
-        _search_adequately(
-            rec.touches,
-            present,
-            rec.geometries,
-            fits,
-            noise,
-            n,
-            method,
-            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-            below=False,
-        )
-        merged = [fits[reg.model].registration if reg.model in fits else reg for reg in merged]
-    return dataclasses.replace(rec, ranking=tuple(merged)), capped
+    # Every touch registered alone with the wider window, but a leader's joint pose
+    # missed still: its pairs of touches again, with the wider window too (the leaders
+    # only: the models well below them were searched from pairs already, and searching
+    # them all again costs an out-of-library answer a third more time).
+    noise, n = _noise_and_points(rec)
+    present = [models[reg.model] for reg in merged if reg.model in fits]
+    _search_adequately(
+        rec.touches,
+        present,
+        rec.geometries,
+        fits,
+        noise,
+        n,
+        method,
+        lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        below=False,
+    )
+    merged = [fits[reg.model].registration if reg.model in fits else reg for reg in merged]
+    return dataclasses.replace(rec, ranking=tuple(merged))
 
 
 def _with_verdict(
@@ -896,7 +899,10 @@ def _with_verdict(
         if run is None:
             run = ModelWorkers(models, workers=1)
         with timed("widened"):
-            rec, capped = _widened(rec, fits, by_name, method, run)
+            if len(rec.touches) == 1:
+                rec, capped = _widened(rec, by_name, method, run)
+            else:
+                rec = _widened_joint(rec, fits, by_name, method)
             scores, noise = _score(rec, prior)
             rec = _ordered(rec, scores)
         looked = "every model registered again"
@@ -909,7 +915,6 @@ def _with_verdict(
             with timed("dense"):
                 rec, _ = _widened(
                     rec,
-                    fits,
                     by_name,
                     method,
                     run,
