@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from seeded_touches import touches_at, world_pose
 
-import meshrec
 from meshrec import defaults
 from meshrec.recognition import joint
 from meshrec.recognition.bestfirst import fit_best_first
@@ -27,15 +27,7 @@ def on_torus(library):
     """Three seeded touches of the torus at a random pose, their geometries and noise, and
     every model's first touch registered alone."""
     rng = np.random.default_rng(11)
-    T = np.eye(4)
-    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
-    touches = [
-        meshrec.simulate_touch(
-            library["torus"], length=0.3, noise=0.002, rng=rng, transform=False
-        ).touch.transformed(T)
-        for _ in range(3)
-    ]
+    touches, _ = touches_at(library["torus"], world_pose(rng), rng)
     geometries = [touch_geometry(t) for t in touches]
     noises = [noise_estimate(g.fit_rms, g.noise_rms, g.half_length) for g in geometries]
     noise = joint.pooled_noise(noises, [t.n_points for t in touches])

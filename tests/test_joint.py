@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from seeded_touches import touches_at, world_pose
 
 import meshrec
 from meshrec.app.cli import main
@@ -24,28 +25,11 @@ def library(ellipsoid_capsule_torus):
     return ellipsoid_capsule_torus
 
 
-def _world(rng) -> np.ndarray:
-    """A seeded rigid motion: T_world_model."""
-    T = np.eye(4)
-    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
-    return T
-
-
-def _touches(model, T_world_model, rng, n=3, length=0.3, noise=0.002):
-    """``n`` simulated touches of one object at one pose, in the world frame."""
-    sims = [
-        meshrec.simulate_touch(model, length=length, noise=noise, rng=rng, transform=False)
-        for _ in range(n)
-    ]
-    return [s.touch.transformed(T_world_model) for s in sims], sims
-
-
 @pytest.fixture(scope="module")
 def three_on_ellipsoid(library):
     rng = np.random.default_rng(3)
-    T_world_model = _world(rng)
-    touches, sims = _touches(library["ellipsoid"], T_world_model, rng)
+    T_world_model = world_pose(rng)
+    touches, sims = touches_at(library["ellipsoid"], T_world_model, rng)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rec = meshrec.recognize(touches, library)
@@ -121,8 +105,8 @@ def test_the_models_order_changes_nothing(library, three_on_ellipsoid):
 
 def test_an_object_that_moved_between_touches_is_unknown(library):
     rng = np.random.default_rng(11)
-    T_world_model = _world(rng)
-    touches, _ = _touches(library["ellipsoid"], T_world_model, rng, n=2)
+    T_world_model = world_pose(rng)
+    touches, _ = touches_at(library["ellipsoid"], T_world_model, rng, n=2)
     moved = np.eye(4)
     moved[:3, :3] = Rotation.from_rotvec([0.0, 0.0, 0.6]).as_matrix()
     moved[:3, 3] = [0.3, -0.2, 0.1]
@@ -137,7 +121,7 @@ def test_an_object_that_moved_between_touches_is_unknown(library):
 
 def test_touches_too_far_apart_for_any_model_are_unknown(library):
     rng = np.random.default_rng(12)
-    touches, _ = _touches(library["torus"], _world(rng), rng, n=2)
+    touches, _ = touches_at(library["torus"], world_pose(rng), rng, n=2)
     far = np.eye(4)
     far[:3, 3] = [50.0, 0.0, 0.0]
     touches[1] = touches[1].transformed(far)
@@ -150,7 +134,7 @@ def test_touches_too_far_apart_for_any_model_are_unknown(library):
 
 def test_touches_in_different_units_are_refused(library):
     rng = np.random.default_rng(13)
-    touches, _ = _touches(library["torus"], _world(rng), rng, n=2)
+    touches, _ = touches_at(library["torus"], world_pose(rng), rng, n=2)
     scale = np.diag([1000.0, 1000.0, 1000.0, 1.0])
     mm = meshrec.TouchData(curves=[c @ scale[:3, :3] for c in touches[1].curves])
     with pytest.raises(ValueError, match=r"touches\[1\] is 1[.0-9]*e\+03 times the size of"):
@@ -206,9 +190,9 @@ def test_pooled_noise_averages_variances_by_points():
 def test_joint_poses_from_the_true_pose_stay_there(library):
     """A brute-force twin: from the true pose, the joint refinement moves by the noise only."""
     rng = np.random.default_rng(21)
-    T_world_model = _world(rng)
+    T_world_model = world_pose(rng)
     model = library["ellipsoid"]
-    touches, _ = _touches(model, T_world_model, rng, n=2, noise=0.0005)
+    touches, _ = touches_at(model, T_world_model, rng, n=2, noise=0.0005)
     T_true = np.linalg.inv(T_world_model)
     poses = joint.joint_poses(model, touches, [T_true], touch_geometry(touches[0]))
     assert len(poses) == 1
@@ -223,7 +207,7 @@ def test_joint_poses_from_the_true_pose_stay_there(library):
 
 def test_cli_recognises_several_touch_files(library, tmp_path, capsys, monkeypatch):
     rng = np.random.default_rng(5)
-    touches, _ = _touches(library["torus"], _world(rng), rng, n=3)
+    touches, _ = touches_at(library["torus"], world_pose(rng), rng, n=3)
     names = []
     for k, t in enumerate(touches):
         path = tmp_path / f"t{k}.csv"
@@ -294,8 +278,8 @@ def test_joint_refinement_does_not_stop_short_on_a_nearly_free_turn(tmp_path):
     library = meshrec.ModelLibrary.from_folder(tmp_path / "models", cache_dir=tmp_path / "c")
     model = library[library.names[0]]
     rng = np.random.default_rng(507)
-    T_world_model = _world(rng)
-    touches, _ = _touches(model, T_world_model, rng)
+    T_world_model = world_pose(rng)
+    touches, _ = touches_at(model, T_world_model, rng)
     geometries = [touch_geometry(t) for t in touches]
     fit = joint.register_touches(touches, model, geometries, upto=1)
     # and then along the near-symmetries (the search alone can end a large turn away, at
@@ -321,9 +305,9 @@ def test_many_seeds_in_one_basin_are_refined_once_to_the_same_pose(library):
     pose a single seed refined alone gives (the twin), and seeds in the ellipsoid's
     half-turned poses stay apart from it."""
     rng = np.random.default_rng(8)
-    T_world_model = _world(rng)
+    T_world_model = world_pose(rng)
     model = library["ellipsoid"]
-    touches, _ = _touches(model, T_world_model, rng, n=3, noise=0.001)
+    touches, _ = touches_at(model, T_world_model, rng, n=3, noise=0.001)
     T_true = np.linalg.inv(T_world_model)
     g = touch_geometry(touches[0])
     seeds = []
@@ -360,9 +344,9 @@ def test_exploring_near_symmetries_never_worsens_the_fit(library):
     """The poses found along the weak motions join the previous ones: the best RMS only
     falls (the ellipsoid touched three times); mismatched geometries raise."""
     rng = np.random.default_rng(11)
-    T_world_model = _world(rng)
+    T_world_model = world_pose(rng)
     model = library["ellipsoid"]
-    touches, _ = _touches(model, T_world_model, rng, n=3, noise=0.001)
+    touches, _ = touches_at(model, T_world_model, rng, n=3, noise=0.001)
     geometries = [touch_geometry(t) for t in touches]
     fit = joint.register_touches(touches, model, geometries, upto=len(touches))
     again = joint.explore_weak_motions(touches, model, geometries, fit)

@@ -15,18 +15,12 @@ import numpy as np
 import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
+from seeded_touches import touches_at, world_pose
 
 import meshrec
 from meshrec.recognition import recognize as recognize_module
 
 YCB = Path(__file__).resolve().parents[2] / "shared" / "data" / "ycb"
-
-
-def _world(rng) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
-    return T
 
 
 def test_a_leader_fitting_worse_than_the_noise_is_searched_again_from_pairs(tmp_path, monkeypatch):
@@ -37,13 +31,7 @@ def test_a_leader_fitting_worse_than_the_noise_is_searched_again_from_pairs(tmp_
     library = meshrec.ModelLibrary.from_folder(tmp_path / "models", cache_dir=tmp_path / "cache")
     big = trimesh.creation.icosphere(subdivisions=4, radius=1.1)
     rng = np.random.default_rng(4)
-    T_world = _world(rng)
-    touches = [
-        meshrec.simulate_touch(
-            big, length=0.3, noise=0.002, rng=rng, transform=False
-        ).touch.transformed(T_world)
-        for _ in range(3)
-    ]
+    touches, _ = touches_at(big, world_pose(rng), rng)
     searched = []
     original = recognize_module.search_pairs
 

@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
+from seeded_touches import touches_at, world_pose
 
 import meshrec
 from meshrec.recognition.phases import PARTS, PHASES, PhaseTimes, phase_clock, timed
@@ -161,15 +161,7 @@ def test_a_given_probe_radius_skips_the_offset_check(touched_ellipsoid):
 def test_three_touches_time_the_joint_phases(ellipsoid_capsule_torus):
     library = ellipsoid_capsule_torus
     rng = np.random.default_rng(3)
-    T = np.eye(4)
-    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
-    touches = [
-        meshrec.simulate_touch(
-            library["ellipsoid"], length=0.3, noise=0.002, rng=rng, transform=False
-        ).touch.transformed(T)
-        for _ in range(3)
-    ]
+    touches, _ = touches_at(library["ellipsoid"], world_pose(rng), rng)
     rec, around = _timed_recognition(touches, library)
     again, _ = _timed_recognition(touches, library)
     assert rec.best.model == "ellipsoid"
