@@ -1,6 +1,7 @@
 """Recognition per family of models: mechanical parts, coarse primitives, YCB scans, surfaces.
 
-    PYTHONPATH=. .venv/bin/python tools/families.py [--quick] [--trials N] [--out FILE]
+    PYTHONPATH=. .venv/bin/python tools/families.py [--quick] [--trials N] [--leave-out]
+        [--out FILE]
 
 Each family is a model folder recognised as a library of its own:
 
@@ -22,9 +23,11 @@ is recognised alone, then all three together (``recognize`` takes a list of touc
 Reported per family, for one touch and for three: right (the best model is the touched
 one), the verdicts (recognised, ambiguous, unknown), named with a free pose (ambiguous with
 the touched model alone: a flat face), the truth among the plausible models, and confident
-wrong answers (``recognised`` and wrong). ``--quick`` takes one trial of at most four
-objects per family (a few minutes on a shared 2-core machine). Uses only meshrec's public
-API and the builders of ``tools/make_parts.py``.
+wrong answers (``recognised`` and wrong). ``--leave-out`` recognises each object against
+its family's folder without it: an object not in the library, where every answer should
+be ``unknown`` (or ``ambiguous``), none ``recognised``. ``--quick`` takes one trial of at
+most four objects per family (a few minutes on a shared 2-core machine). Uses only
+meshrec's public API and the builders of ``tools/make_parts.py``.
 """
 
 from __future__ import annotations
