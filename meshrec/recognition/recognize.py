@@ -664,15 +664,16 @@ def _search_adequately(
         names = list(fits)
         ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
         leader = float(np.max(ll))
+        ll_of = dict(zip(names, ll, strict=True))
         todo = [
             m
             for m in models
             if m.name not in searched
             and not fits[m.name].registration.rejected
             and (
-                (below and ll[names.index(m.name)] < leader - gap)
+                (below and ll_of[m.name] < leader - gap)
                 or (
-                    ll[names.index(m.name)] >= leader - gap
+                    ll_of[m.name] >= leader - gap
                     and _fits_worse(fits[m.name].registration.rms, n, noise)
                 )
             )
@@ -715,11 +716,12 @@ def _explore_near_symmetries(touches, models, geometries, fits: dict, noise: flo
     names = list(fits)
     ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
     leader = float(np.max(ll))
+    ll_of = dict(zip(names, ll, strict=True))
     near = [
         m
         for m in models
         if not fits[m.name].registration.rejected
-        and ll[names.index(m.name)] >= leader - defaults.PAIR_SEARCH_GAP
+        and ll_of[m.name] >= leader - defaults.PAIR_SEARCH_GAP
     ]
     for model in near:
         fits[model.name] = explore_weak_motions(touches, model, geometries, fits[model.name])
@@ -821,6 +823,7 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
     pairs of touches with the wider window (:func:`_search_adequately`). ``fits`` (the
     joint fits, by model) is updated in place where the wider pass fits better.
     """
+    noise, n = _noise_and_points(rec)
     merged = []
     for reg in rec.ranking:
         fit = register_touches(
@@ -830,7 +833,7 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
             upto=len(rec.touches),
             method=method,
             lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
-            noise=_noise_and_points(rec)[0],
+            noise=noise,
         )
         wide = fit.registration
         if reg.rejected or (not wide.rejected and wide.error < reg.error):
@@ -842,7 +845,6 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
     # missed still: its pairs of touches again, with the wider window too (the leaders
     # only: the models well below them were searched from pairs already, and searching
     # them all again costs an out-of-library answer a third more time).
-    noise, n = _noise_and_points(rec)
     present = [models[reg.model] for reg in merged if reg.model in fits]
     _search_adequately(
         rec.touches,
