@@ -82,6 +82,7 @@ _WHERE = {
     "register_coarse": "meshrec.registration.register",
     "register_full": "meshrec.registration.register",
     "cascade_register": "meshrec.recognition.cascade",
+    "cascade_survivors": "meshrec.recognition.cascade",
     "Screening": "meshrec.registration.screening",
     "screen_candidates": "meshrec.registration.screening",
     "Searches": "meshrec.registration.searching",
@@ -111,7 +112,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.model.mesh import load_mesh
     from meshrec.model.resolution import ResolutionWarning
     from meshrec.recognition.advice import TouchAdvice, next_touch
-    from meshrec.recognition.cascade import cascade_register
+    from meshrec.recognition.cascade import cascade_register, cascade_survivors
     from meshrec.recognition.edges import SharpEdgeWarning
     from meshrec.recognition.freedom import PoseFreedom, pose_freedom
     from meshrec.recognition.joint import JointFit, register_touches
@@ -184,6 +185,7 @@ __all__ = [
     "__version__",
     "bundled_models_dir",
     "cascade_register",
+    "cascade_survivors",
     "curvature_tolerance",
     "distinct_poses",
     "estimate_local_geometry",

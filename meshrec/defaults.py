@@ -509,6 +509,9 @@ CASCADE_SCREEN_GAIN = 2.0
 #: pairs: the leader's rms over the least screened error was at most 1.82, median 1.29;
 #: the screening's error is a mean on the phi subsample, the rms is at least the mean).
 #: With these two gains the rule pruned 59 of the 135 pairs, none of the 38 close ones.
+#: Where a model was already searched in full (the screen's leaders, or else the model of
+#: least screened error, searched first), the least rms reached bounds the leaders' too,
+#: with no gain: the smaller bound is used (reports/cascade_gains.md).
 CASCADE_LEADER_GAIN = 2.0
 #: Rigid-refinement steps on all the points for a pruned model's reported pose (as the
 #: screening's SCREEN_ITERATIONS): its error is an upper bound either way, and the full

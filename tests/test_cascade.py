@@ -44,6 +44,26 @@ def test_survivors_follow_the_log_likelihood_rule_worked_by_hand():
     assert keep.tolist() == [True, True, False, False]
 
 
+def test_a_reached_rms_tightens_the_leaders_bound_worked_by_hand():
+    n, noise = 100, 0.01
+    half_n = 0.5 * effective_points(n)
+    leader, reached = 0.01, 0.012  # the leader's rms below its screened error x the gain
+    worst = half_n * (reached / noise) ** 2
+    edge = (
+        defaults.CASCADE_SCREEN_GAIN
+        * noise
+        * np.sqrt((worst - defaults.JOINT_PRUNE_LOG_RATIO) / half_n)
+    )
+    errors = [leader, 0.99 * edge, 1.01 * edge]
+    keep = cascade_survivors(errors, n, noise, leader_rms=reached)
+    assert keep.tolist() == [True, True, False]
+    # without it, the bound from the screened error alone keeps the model beyond the edge
+    assert cascade_survivors(errors, n, noise).tolist() == [True, True, True]
+    # a reached rms above the screened bound changes nothing: the bound is the smaller one
+    loose = cascade_survivors(errors, n, noise, leader_rms=1.0)
+    assert loose.tolist() == [True, True, True]
+
+
 def test_survivors_do_not_depend_on_the_order():
     rng = np.random.default_rng(4)
     errors = [*list(rng.uniform(0.001, 0.05, 12)), None, None]
@@ -71,6 +91,8 @@ def test_no_known_error_keeps_nothing():
         (dict(log_ratio=1.0), "log_ratio"),
         (dict(screened_errors=[0.1, -1.0]), "screened_errors"),
         (dict(screened_errors=[float("nan")]), "screened_errors"),
+        (dict(leader_rms=-0.1), "leader_rms"),
+        (dict(leader_rms=float("inf")), "leader_rms"),
     ],
 )
 def test_bad_survivor_inputs_are_refused(kwargs, match):

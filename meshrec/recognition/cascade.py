@@ -15,8 +15,10 @@ and its probability only falls).
 The rule is the scores' own (:mod:`meshrec.recognition.scoring`): a model's
 log-likelihood is ``-n_eff rms^2 / (2 noise^2)``. Its best conceivable rms is its screened
 error divided by ``defaults.CASCADE_SCREEN_GAIN`` (the most the searches were measured to
-improve a screened error, with a margin); the leaders' rms is at most the least screened
-error times ``defaults.CASCADE_LEADER_GAIN``. A model whose best conceivable
+improve a screened error, with a margin); the leaders' rms is at most the rms that a model
+already reached in a full search (the screen's leaders, or else the model of least screened
+error, searched in full first), and at most the least screened error times
+``defaults.CASCADE_LEADER_GAIN``. A model whose best conceivable
 log-likelihood is below the leaders' worst by more than ``-defaults.JOINT_PRUNE_LOG_RATIO``
 (e^-14: far below any plausible set) is pruned. The rule looks at the set of screened
 errors only, so it does not depend on the order of the models.
@@ -73,6 +75,7 @@ def cascade_survivors(
     screen_gain: float = defaults.CASCADE_SCREEN_GAIN,
     leader_gain: float = defaults.CASCADE_LEADER_GAIN,
     log_ratio: float = defaults.JOINT_PRUNE_LOG_RATIO,
+    leader_rms: float | None = None,
 ) -> np.ndarray:
     """Which models the full search must still run on.
 
@@ -91,6 +94,10 @@ def cascade_survivors(
         The leaders' rms is taken to be at most the least screened error times this (>= 1).
     log_ratio : float
         Prune below this log-likelihood ratio to the leaders' (< 0).
+    leader_rms : float, optional
+        The least rms a model already reached in a full search: the best model's rms is
+        at most that, so the leaders' rms is taken to be at most the smaller of it and the
+        least screened error times ``leader_gain`` (None: the latter alone).
 
     Returns
     -------
@@ -102,7 +109,8 @@ def cascade_survivors(
     ------
     ValueError
         If ``n_points`` is not a positive integer, ``noise`` not positive and finite, a
-        gain below 1, ``log_ratio`` not negative or an error negative or not finite.
+        gain below 1, ``log_ratio`` not negative, an error negative or not finite, or
+        ``leader_rms`` negative or not finite.
     """
     if not isinstance(n_points, (int, np.integer)) or isinstance(n_points, bool) or n_points < 1:
         raise ValueError(f"n_points must be a positive integer, got {n_points!r}")
@@ -113,6 +121,8 @@ def cascade_survivors(
             raise ValueError(f"{name} must be a finite number >= 1, got {gain!r}")
     if not (np.isfinite(log_ratio) and log_ratio < 0):
         raise ValueError(f"log_ratio must be negative and finite, got {log_ratio!r}")
+    if leader_rms is not None and not (np.isfinite(leader_rms) and leader_rms >= 0):
+        raise ValueError(f"leader_rms must be finite and >= 0, got {leader_rms!r}")
     known = [e for e in screened_errors if e is not None]
     for e in known:
         if not (np.isfinite(e) and e >= 0):
@@ -121,8 +131,10 @@ def cascade_survivors(
     if not known:
         return keep
     half_n = 0.5 * effective_points(int(n_points))
-    leader_rms = min(known) * leader_gain
-    worst_leader = -half_n * (leader_rms / noise) ** 2
+    bound = min(known) * leader_gain
+    if leader_rms is not None:
+        bound = min(bound, float(leader_rms))
+    worst_leader = -half_n * (bound / noise) ** 2
     for i, e in enumerate(screened_errors):
         if e is None:
             continue
@@ -300,7 +312,23 @@ def cascade_register(
     for i, c in zip(todo, results[len(cut) :], strict=True):
         first[i] = c
     coarse = [first[i] for i in stay]
-    keep = cascade_survivors([c.screened_error for c in coarse], int(touch.n_points), noise)
+    errors = [c.screened_error for c in coarse]
+    reached = [out[i].rms for i in stay if out[i] is not None and not out[i].rejected]
+    if not reached and any(e is not None for e in errors):
+        # No model registered in full yet (no screen): the one of least screened error
+        # first (ties by name), which the rule always keeps. The rms it reaches bounds the
+        # best model's, a tighter bound than its screened error times the leader gain.
+        lead = min(
+            (k for k, e in enumerate(errors) if e is not None),
+            key=lambda k: (errors[k], models[stay[k]].name),
+        )
+        i, c = stay[lead], coarse[lead]
+        searches = min(defaults.LOCAL_SEARCHES, len(c.screening.candidates))
+        (out[i],) = batch([StageJob("full", models[i], c, searches / defaults.LOCAL_SEARCHES)])
+        reached = [out[i].rms]
+    keep = cascade_survivors(
+        errors, int(touch.n_points), noise, leader_rms=min(reached) if reached else None
+    )
     # The full searches of the survivors (cost: their local searches) and the pruned poses.
     last, jobs = [], []
     for i, c, k in zip(stay, coarse, keep, strict=True):
