@@ -25,6 +25,7 @@ table goes to stdout and ``--out``, the plot to ``--plot``. Uses only meshrec's 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import statistics
@@ -131,6 +132,11 @@ def measure(n: int, args) -> dict:
         row["serial_cpu_s"] = time.process_time() - c0
         row["serial_best"] = rec.best.model if rec.best is not None else None
         row["searched"] = sum(r.searches > 0 for r in rec.ranking)  # full searches run
+        row["pruned"] = sum(r.pruned for r in rec.ranking)
+        row["rejected"] = sum(r.rejected for r in rec.ranking)
+        # where the time went: each stage's seconds summed over the models (wall clocks)
+        stages = sum((r.times for r in rec.ranking), meshrec.StageTimes())
+        row["stages_s"] = dataclasses.asdict(stages)
         row["verdict"] = rec.verdict
         if workers is not None:
             t0 = time.perf_counter()
@@ -224,6 +230,30 @@ def report(results: list[dict], args) -> str:
             f"| {base} | {ratio} | {bright} "
             f"| {r.get('workers_start_s', float('nan')):.2f} | {r.get('load_average', 0):.1f} |"
         )
+    staged = [r for r in sorted(results, key=lambda r: r["models"]) if r["touches"]]
+    staged = [r for r in staged if "stages_s" in r["touches"][0]]
+    if staged:
+        names = list(staged[0]["touches"][0]["stages_s"])
+        out += [
+            "",
+            "Where a recognition's time went (medians over the touches; each stage's wall "
+            "seconds summed over the models, `Registration.times`), and the models searched "
+            "in full, pruned (by the library-wide screen or the cascade) and rejected by the "
+            "lookup:",
+            "",
+            "| models | "
+            + " | ".join(f"{k} s" for k in names)
+            + " | searched in full | pruned | rejected |",
+            "|---:|" + "---:|" * (len(names) + 3),
+        ]
+        for r in staged:
+            t = r["touches"]
+            cells = [_fmt(statistics.median(x["stages_s"][k] for x in t)) for k in names]
+            counts = [
+                f"{statistics.median(x[k] for x in t):.0f}"
+                for k in ("searched", "pruned", "rejected")
+            ]
+            out.append(f"| {r['models']} | " + " | ".join(cells + counts) + " |")
     out.append("")
     return "\n".join(out)
 
