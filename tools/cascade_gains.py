@@ -36,6 +36,7 @@ import meshrec
 from meshrec import bench, defaults
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _libraries import blob_folder  # tools/_libraries.py
 from _report import finish  # tools/_report.py
 
 GAINS = (defaults.CASCADE_SCREEN_GAIN, 1.5, 1.3)
@@ -121,11 +122,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="meshrec-cascade-gains-") as tmp:
         data = args.data or Path(tmp)
         if args.blobs:
-            folder = data / f"gains_blobs_{args.blobs}"
-            folder.mkdir(parents=True, exist_ok=True)
-            for f in bench.write_blobs(args.blobs, data / "blobs"):
-                if not (folder / f.name).exists():
-                    (folder / f.name).hardlink_to(f)
+            folder = blob_folder(data, args.blobs, f"gains_blobs_{args.blobs}")
             library = meshrec.ModelLibrary.from_folder(folder, cache_dir=data / "cache")
             _measure(
                 library, _touches(library, args.touches, "paper"), f"blobs ({args.blobs})", rows

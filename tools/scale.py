@@ -49,16 +49,10 @@ def _rss_mb() -> float:
 
 def _library_folder(data: Path, n: int) -> Path:
     """A folder holding the first ``n`` blobs (hard links to the shared files)."""
-    from meshrec.bench import write_blobs
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from _libraries import blob_folder  # tools/_libraries.py
 
-    files = write_blobs(n, data / "blobs")
-    folder = data / f"library_{n}"
-    folder.mkdir(parents=True, exist_ok=True)
-    for f in files:
-        link = folder / f.name
-        if not link.exists():
-            os.link(f, link)
-    return folder
+    return blob_folder(data, n, f"library_{n}")
 
 
 def _answer(rec) -> tuple:

@@ -32,6 +32,7 @@ import meshrec
 from meshrec import bench, defaults
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _libraries import blob_folder  # tools/_libraries.py
 from _report import finish  # tools/_report.py
 
 
@@ -82,9 +83,7 @@ def _measure(library, touches, label, rows):
                 "close": len(close),
                 "close_max": max((est[m] / rms[m] for m in close), default=float("nan")),
                 "all_max": max((est[m] / rms[m] for m in judged), default=float("nan")),
-                "leader": (
-                    lead_rms / min(rms.values()) if lead_rms is not None else float("nan")
-                ),
+                "leader": (lead_rms / min(rms.values()) if lead_rms is not None else float("nan")),
                 "pruned": sum(not kept[m] for m in sites.names),
                 "pruned_close": sum(not kept[m] for m in close),
                 "right": rec.best is not None and rec.best.model == name,
@@ -109,11 +108,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="meshrec-gains-") as tmp:
         data = args.data or Path(tmp)
         if args.blobs:
-            folder = data / f"gains_blobs_{args.blobs}"
-            folder.mkdir(parents=True, exist_ok=True)
-            for f in bench.write_blobs(args.blobs, data / "blobs"):
-                if not (folder / f.name).exists():
-                    (folder / f.name).hardlink_to(f)
+            folder = blob_folder(data, args.blobs, f"gains_blobs_{args.blobs}")
             library = meshrec.ModelLibrary.from_folder(folder, cache_dir=data / "cache")
             touches = _touches(library, library.names, args.touches, "blob")
             _measure(library, touches, f"blobs ({args.blobs})", rows)
