@@ -20,8 +20,8 @@ from meshrec.recognition.cascade import (
     cascade_survivors,
     pruned_registration,
 )
-from meshrec.recognition.jobs import run_stage
-from meshrec.recognition.scoring import effective_points
+from meshrec.recognition.jobs import run_stage, run_stages_here
+from meshrec.recognition.scoring import effective_points, noise_estimate
 from meshrec.registration.register import register, register_coarse, register_full
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -188,6 +188,47 @@ def test_cascade_register_is_order_free(surfaces):
     a = cascade_register(touch, models)
     b = cascade_register(touch, models[::-1])[::-1]
     assert [(r.model, r.error, r.pruned) for r in a] == [(r.model, r.error, r.pruned) for r in b]
+
+
+class _Spy:
+    """A ModelWorkers stand-in that runs the batches here and records their jobs."""
+
+    def __init__(self):
+        self.batches = []
+
+    def run_stages(self, jobs, touch, geometry, method, trace=False, progress=None):
+        self.batches.append([(job.kind, job.model.name) for job in jobs])
+        return run_stages_here(jobs, touch, geometry, method, trace, progress=progress)
+
+
+def test_the_least_screened_model_is_searched_first_and_bounds_the_leaders(surfaces):
+    touch = paper_touch(surfaces["ellipsoid"], 0).touch
+    models = list(surfaces)  # 4 models: no library-wide screen
+    spy = _Spy()
+    regs = cascade_register(touch, models, run=spy)
+    first, lead, last = spy.batches
+    assert {kind for kind, _ in first} == {"coarse"}
+    # the model of least screened error, computed independently
+    geometry = meshrec.estimate_local_geometry(touch.curves)
+    coarse = {m.name: register_coarse(touch, m, geometry) for m in models}
+    errors = {k: c.screened_error for k, c in coarse.items() if not c.rejected}
+    least = min(errors, key=lambda k: (errors[k], k))
+    assert lead == [("full", least)]
+    assert least not in [name for _, name in last]
+    by_name = {r.model: r for r in regs}
+    assert not by_name[least].pruned
+    # the decision is cascade_survivors' with the rms that model reached
+    noise = noise_estimate(geometry.fit_rms, geometry.noise_rms, geometry.half_length)
+    names = [m.name for m in models]
+    keep = cascade_survivors(
+        [coarse[k].screened_error for k in names],
+        int(touch.n_points),
+        noise,
+        leader_rms=by_name[least].rms,
+    )
+    for name, k in zip(names, keep, strict=True):
+        if not coarse[name].rejected:
+            assert by_name[name].pruned == (not k)
 
 
 @pytest.mark.slow
