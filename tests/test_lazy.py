@@ -20,7 +20,17 @@ def test_returns_the_module_already_imported():
     assert _lazy.trimesh_module() is trimesh
 
 
-def test_ctrl_c_during_the_import_is_raised_after_it(monkeypatch):
+@pytest.fixture
+def default_sigint():
+    """Python's own SIGINT handler for the test (a process started in the background or
+    under nohup inherits SIGINT ignored, and then the import is left alone), restored
+    after."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
+def test_ctrl_c_during_the_import_is_raised_after_it(monkeypatch, default_sigint):
     fake = types.ModuleType("trimesh")
     done = []
 
@@ -38,12 +48,25 @@ def test_ctrl_c_during_the_import_is_raised_after_it(monkeypatch):
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_without_ctrl_c_the_import_is_returned(monkeypatch):
+def test_without_ctrl_c_the_import_is_returned(monkeypatch, default_sigint):
     fake = types.ModuleType("trimesh")
     monkeypatch.delitem(sys.modules, "trimesh")
     monkeypatch.setattr(_lazy.importlib, "import_module", lambda name: fake)
     assert _lazy.trimesh_module() is fake
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_ignored_sigint_is_left_alone(monkeypatch):
+    # started in the background (SIGINT ignored): no handler is installed, none restored
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        fake = types.ModuleType("trimesh")
+        monkeypatch.delitem(sys.modules, "trimesh")
+        monkeypatch.setattr(_lazy.importlib, "import_module", lambda name: fake)
+        assert _lazy.trimesh_module() is fake
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def test_a_warm_recognition_imports_no_trimesh(tmp_path):
