@@ -29,10 +29,11 @@ full, the models it prunes get its own pruned registration, and only the others 
 stages above.
 
 The decisions (the screen, its survivors, the cascade's survivors) are taken in the
-caller's process on whole sets of results; the per-model work between them runs in three
+caller's process on whole sets of results; the per-model work between them runs in
 batches of :class:`~meshrec.recognition.jobs.StageJob` (the screen's leaders; the
-screen's pruned registrations and the others' first stages; the full searches and the
-cascade's pruned registrations), here or on the workers of a
+screen's pruned registrations and the others' first stages; without the screen, the full
+search of the model of least screened error; the full searches and the cascade's pruned
+registrations), here or on the workers of a
 :class:`~meshrec.recognition.workers.ModelWorkers` (local processes, a Dask cluster):
 the result is the same wherever they ran.
 """
@@ -216,8 +217,10 @@ def cascade_register(
     The per-model work runs in batches between the cascade's decisions, each batch on
     ``run`` (a :class:`~meshrec.recognition.workers.ModelWorkers`: in this process, local
     processes or a Dask cluster) or here: the screen's leaders; the screen's pruned
-    registrations and the other models' first stages; the full searches of the models
-    the cascade keeps and the pruned registrations of the others. The decisions (the
+    registrations and the other models' first stages; without the screen, the full
+    search of the model of least screened error (its rms bounds the leaders'); the full
+    searches of the models the cascade keeps and the pruned registrations of the others.
+    The decisions (the
     screen, its survivors, :func:`cascade_survivors`) are taken here on the whole set of
     results, so the result is the same wherever the batches ran.
 
