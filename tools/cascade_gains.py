@@ -3,6 +3,9 @@
     nice -n 10 .venv/bin/python tools/cascade_gains.py --blobs 30 --touches 8 --shapes 20 \
         --surfaces 3 --objects 3 --data /tmp/library/data --out reports/cascade_gains.md
 
+``--folder DIR`` adds a library of your own (touched with ``simulate_touch``, seeds from
+30, ``--folder-touches`` of them spread over its models).
+
 The cascade (:func:`meshrec.cascade_register`) runs every model's first stages
 (:func:`meshrec.register_coarse`) and then the full search only on the models whose best
 conceivable fit can still compete (:func:`meshrec.cascade_survivors`): a model's rms is
@@ -114,6 +117,10 @@ def main(argv=None) -> int:
     p.add_argument("--surfaces", type=int, default=0, help="touches per paper surface (0: none)")
     p.add_argument("--objects", type=int, default=0, help="touches per bundled object (0: none)")
     p.add_argument("--touches", type=int, default=8, help="touches per generated library")
+    p.add_argument("--folder", type=Path, default=None, help="also a folder of your own models")
+    p.add_argument(
+        "--folder-touches", type=int, default=10, help="touches on --folder (simulate_touch)"
+    )
     p.add_argument("--data", type=Path, default=None, help="blobs and cache folder")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
@@ -146,6 +153,10 @@ def main(argv=None) -> int:
             )
             touches = _touches(library, args.touches, "shape", seed0=20)
             _measure(library, touches, f"shape_set({args.shapes})", rows)
+        if args.folder is not None:
+            library = meshrec.ModelLibrary.from_folder(args.folder, cache_dir=data / "cache")
+            touches = _touches(library, args.folder_touches, "shape", seed0=30)
+            _measure(library, touches, args.folder.name, rows)
     shown = " ".join(sys.argv[1:] if argv is None else argv)
     g0 = GAINS[0]
     out = [
