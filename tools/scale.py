@@ -38,6 +38,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _libraries import blob_folder  # noqa: E402  (tools/_libraries.py)
+
 
 def _rss_mb() -> float:
     """This process's resident memory, MB (from /proc/self/status)."""
@@ -49,9 +52,6 @@ def _rss_mb() -> float:
 
 def _library_folder(data: Path, n: int) -> Path:
     """A folder holding the first ``n`` blobs (hard links to the shared files)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from _libraries import blob_folder  # tools/_libraries.py
-
     return blob_folder(data, n, f"library_{n}")
 
 

@@ -325,9 +325,8 @@ def cascade_register(
             (k for k, e in enumerate(errors) if e is not None),
             key=lambda k: (errors[k], models[stay[k]].name),
         )
-        i, c = stay[lead], coarse[lead]
-        searches = min(defaults.LOCAL_SEARCHES, len(c.screening.candidates))
-        (out[i],) = batch([StageJob("full", models[i], c, searches / defaults.LOCAL_SEARCHES)])
+        i = stay[lead]
+        (out[i],) = batch([_full_job(models[i], coarse[lead])])
         reached = [out[i].rms]
     keep = cascade_survivors(
         errors, int(touch.n_points), noise, leader_rms=min(reached) if reached else None
@@ -338,13 +337,19 @@ def cascade_register(
         if out[i] is not None:
             continue  # a leader of the screen, registered in full already
         last.append(i)
-        if c.rejected:
-            jobs.append(StageJob("full", models[i], c, 0.0))
-        elif k:
-            searches = min(defaults.LOCAL_SEARCHES, len(c.screening.candidates))
-            jobs.append(StageJob("full", models[i], c, searches / defaults.LOCAL_SEARCHES))
+        if c.rejected or k:
+            jobs.append(_full_job(models[i], c))
         else:
             jobs.append(StageJob("pruned", models[i], c, defaults.PARALLEL_COST_PRUNED))
     for i, reg in zip(last, batch(jobs), strict=True):
         out[i] = reg
     return out
+
+
+def _full_job(model, coarse: CoarseRegistration) -> StageJob:
+    """The full search of ``model`` from its first stages, costed by its local searches
+    (none for a model the lookup rejected)."""
+    if coarse.rejected:
+        return StageJob("full", model, coarse, 0.0)
+    searches = min(defaults.LOCAL_SEARCHES, len(coarse.screening.candidates))
+    return StageJob("full", model, coarse, searches / defaults.LOCAL_SEARCHES)
