@@ -276,10 +276,12 @@ def test_real_recognition(world):
     assert advice.criterion in ("separate", "pose")
     assert advice.point is not None
     # The most probable model first; the sphere and the bumped sphere are the same
-    # surface around the touch, so they may about tie (measured 0.50004 and 0.49996; the
-    # advice then lists first the model of the heaviest single pose): either one first.
+    # surface around the touch, so they about tie (measured 0.50005 and 0.49995 with
+    # defaults.CHART_TOL = 1e-5, 0.511 and 0.489 with 1e-3: their best rms 5.8109e-4 and
+    # 5.8139e-4, 5e-4 apart; the advice then lists first the
+    # model of the heaviest single pose): either one first.
     scores = world["rec"].scores
-    top = {s.model for s in scores if s.probability >= scores[0].probability - 0.01}
+    top = {s.model for s in scores if s.probability >= scores[0].probability - 0.05}
     assert advice.models[0] in top
 
 

@@ -1,0 +1,187 @@
+"""The local search's chart tolerance: what a looser one saves, and what it changes.
+
+    nice -n 5 .venv/bin/python tools/chart_tol.py --tols 1e-5 1e-3 1e-2 \
+        --surfaces 3 --objects 3 --shapes 20 --shape-touches 8 --out reports/chart_tol.md
+
+Each local search (``meshrec.registration.search``) solves a least-squares problem over a
+surface chart's (u, v, phi) to the relative tolerance ``defaults.CHART_TOL`` (ftol and
+xtol), re-centres the chart and solves again until it stops moving; the rigid refinement
+that follows (``refine_searches``) polishes its answer. A looser tolerance stops each
+chart's solve sooner, and the refinement has a little more to do.
+
+For seeded touches (``bench.paper_touch`` on the four paper surfaces and the four bundled
+objects, ``simulate_touch`` on ``bench.shape_set``), every tolerance recognises every touch,
+one after the other touch by touch (so that each touch's runs see about the same machine
+load). Per tolerance: verdicts, best models and plausible sets equal to those of the first
+tolerance given (the reference), the largest relative rise and fall of the best error
+(where the best model is the same), the localisation error of the best contact on the
+paper surfaces (modulo their symmetries: the mean, and the largest change against the
+reference; the other models' symmetries are not known here), the
+search stage's time (``Registration.times.search``, summed over the models) and the
+recognition's CPU time (``time.process_time``), medians per touch and as a ratio to the
+reference's. Uses only meshrec's public API, and sets ``meshrec.defaults.CHART_TOL``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import meshrec
+from meshrec import bench, defaults
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import finish  # tools/_report.py
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+def _localisation(name: str, true_contact, rec) -> float:
+    """Modulo the symmetries on a paper surface; not defined elsewhere (NaN)."""
+    if rec.best is None or name not in meshrec.PAPER_SURFACES:
+        return float("nan")
+    return meshrec.localisation_error(name, true_contact, np.asarray(rec.best.contact))
+
+
+def _fmt(values: np.ndarray, stat) -> str:
+    """``stat`` of the finite values, or '-' when there are none."""
+    finite = values[np.isfinite(values)]
+    return "-" if len(finite) == 0 else f"{stat(finite):.4f}"
+
+
+def _run_one(touch, library, tol):
+    defaults.CHART_TOL = tol
+    c0 = time.process_time()
+    rec = meshrec.recognize(touch, library)
+    cpu = time.process_time() - c0
+    search = sum(r.times.search for r in rec.ranking if r.times is not None)
+    return rec, cpu, search
+
+
+def _compare(label, library, touches, tols, out):
+    """Every tolerance on every touch; append the library's table to ``out``."""
+    meshrec.recognize(touches[0][2], library)  # warm: lazy tables, imports
+    rows = {t: [] for t in tols}
+    for name, contact, touch in touches:
+        for tol in tols:
+            rec, cpu, search = _run_one(touch, library, tol)
+            rows[tol].append(
+                {
+                    "verdict": rec.verdict,
+                    "best": None if rec.best is None else rec.best.model,
+                    "plausible": tuple(rec.plausible),
+                    "error": np.nan if rec.best is None else rec.best.error,
+                    "loc": _localisation(name, contact, rec),
+                    "right": rec.best is not None and rec.best.model == name,
+                    "cpu": cpu,
+                    "search": search,
+                }
+            )
+    ref = rows[tols[0]]
+    n = len(touches)
+    out.append(f"### {label}: {len(library)} models, {n} touches\n")
+    out.append(
+        "| CHART_TOL | same verdict | same best | same plausible | right best | "
+        "best error, relative change: largest rise | largest fall | localisation "
+        "mean | localisation, largest change | search stage median (s) | CPU median (s) | "
+        "CPU / reference, median |"
+    )
+    out.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for tol in tols:
+        r = rows[tol]
+        same_v = sum(a["verdict"] == b["verdict"] for a, b in zip(r, ref, strict=True))
+        same_b = sum(a["best"] == b["best"] for a, b in zip(r, ref, strict=True))
+        same_p = sum(a["plausible"] == b["plausible"] for a, b in zip(r, ref, strict=True))
+        right = sum(a["right"] for a in r)
+        rel = [
+            a["error"] / b["error"] - 1.0
+            for a, b in zip(r, ref, strict=True)
+            if a["best"] == b["best"] and b["error"] > 0
+        ]
+        loc = np.array([a["loc"] for a in r])
+        dloc = np.array([abs(a["loc"] - b["loc"]) for a, b in zip(r, ref, strict=True)])
+        cpu = np.array([a["cpu"] for a in r])
+        ratio = np.median(cpu / np.array([b["cpu"] for b in ref]))
+        out.append(
+            f"| {tol:g} | {same_v}/{n} | {same_b}/{n} | {same_p}/{n} | {right}/{n} | "
+            f"{max(max(rel, default=0.0), 0.0):.2e} | {abs(min(min(rel, default=0.0), 0.0)):.2e} | "
+            f"{_fmt(loc, np.mean)} | {_fmt(dloc, np.max)} | "
+            f"{np.median([a['search'] for a in r]):.3f} | {np.median(cpu):.3f} | "
+            f"{ratio:.2f} |"
+        )
+    out.append("")
+
+
+def _paper_touches(library, names, trials):
+    out = []
+    for name in names:
+        for seed in range(trials):
+            sim = bench.paper_touch(library[name], seed=seed)
+            out.append((name, sim.contact, sim.touch))
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument(
+        "--tols",
+        type=float,
+        nargs="+",
+        default=[1e-5, 1e-3, 1e-2],
+        help="chart tolerances; the first is the reference",
+    )
+    p.add_argument("--surfaces", type=int, default=3, help="touches per paper surface")
+    p.add_argument("--objects", type=int, default=3, help="touches per bundled object")
+    p.add_argument("--shapes", type=int, default=20, help="bench.shape_set size (0: none)")
+    p.add_argument("--shape-touches", type=int, default=8, help="touches on the shape set")
+    p.add_argument("--out", type=Path, default=None, help="Markdown report (default: stdout)")
+    args = p.parse_args(argv)
+    if any(not t > 0 for t in args.tols):
+        p.error(f"--tols must be positive, got {args.tols}")
+    saved = defaults.CHART_TOL
+    out = [f"## The local search's chart tolerance (`defaults.CHART_TOL`, {saved:g} in use)\n"]
+    try:
+        if args.surfaces:
+            lib = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
+            _compare(
+                "The four paper surfaces",
+                lib,
+                _paper_touches(lib, meshrec.PAPER_SURFACES, args.surfaces),
+                args.tols,
+                out,
+            )
+        if args.objects:
+            lib = meshrec.ModelLibrary.from_folder(MODELS / "objects")
+            _compare(
+                "The four bundled objects",
+                lib,
+                _paper_touches(lib, lib.names, args.objects),
+                args.tols,
+                out,
+            )
+        if args.shapes:
+            with tempfile.TemporaryDirectory(prefix="meshrec-charttol-") as tmp:
+                shapes = bench.shape_set(args.shapes, seed=0)
+                bench.write_shapes(shapes, Path(tmp) / "models")
+                lib = meshrec.ModelLibrary.from_folder(
+                    Path(tmp) / "models", cache_dir=Path(tmp) / "cache"
+                )
+                step = max(1, args.shapes // max(1, args.shape_touches))
+                touches = []
+                for k in range(args.shape_touches):
+                    name = shapes[(k * step) % args.shapes].name
+                    sim = meshrec.simulate_touch(lib[name], rng=k)
+                    touches.append((name, sim.contact, sim.touch))
+                _compare(f"bench.shape_set({args.shapes}, seed=0)", lib, touches, args.tols, out)
+    finally:
+        defaults.CHART_TOL = saved
+    return finish(out, args.out)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
