@@ -10,16 +10,17 @@ that follows (``refine_searches``) polishes its answer. A looser tolerance stops
 chart's solve sooner, and the refinement has a little more to do.
 
 For seeded touches (``bench.paper_touch`` on the four paper surfaces and the four bundled
-objects, ``simulate_touch`` on ``bench.shape_set``), every tolerance recognises every touch,
-one after the other touch by touch (so that each touch's runs see about the same machine
-load). Per tolerance: verdicts, best models and plausible sets equal to those of the first
-tolerance given (the reference), the largest relative rise and fall of the best error
-(where the best model is the same), the localisation error of the best contact on the
-paper surfaces (modulo their symmetries: the mean, and the largest change against the
-reference; the other models' symmetries are not known here), the
-search stage's time (``Registration.times.search``, summed over the models) and the
-recognition's CPU time (``time.process_time``), medians per touch and as a ratio to the
-reference's. Uses only meshrec's public API, and sets ``meshrec.defaults.CHART_TOL``.
+objects, ``simulate_touch`` on ``bench.shape_set`` and on ``--folder DIR``, a library of
+your own: touch k on its model k modulo their number, seed k), every tolerance recognises
+every touch, one after the other touch by touch (so that each touch's runs see about the
+same machine load). Per tolerance: verdicts, best models and plausible sets equal to those
+of the first tolerance given (the reference), the largest relative rise and fall of the
+best error (where the best model is the same), the localisation error of the best contact
+on the paper surfaces (modulo their symmetries: the mean, and the largest change against
+the reference; the other models' symmetries are not known here), the search stage's time
+(``Registration.times.search``, summed over the models) and the recognition's CPU time
+(``time.process_time``), medians per touch and as a ratio to the reference's.
+Uses only meshrec's public API, and sets ``meshrec.defaults.CHART_TOL``.
 """
 
 from __future__ import annotations
@@ -139,6 +140,14 @@ def main(argv=None) -> int:
     p.add_argument("--objects", type=int, default=3, help="touches per bundled object")
     p.add_argument("--shapes", type=int, default=20, help="bench.shape_set size (0: none)")
     p.add_argument("--shape-touches", type=int, default=8, help="touches on the shape set")
+    p.add_argument("--folder", type=Path, default=None, help="also a folder of your own models")
+    p.add_argument(
+        "--folder-touches",
+        type=int,
+        default=10,
+        help="touches on --folder (simulate_touch, spread over its models)",
+    )
+    p.add_argument("--cache-dir", type=Path, default=None, help="index cache for --folder")
     p.add_argument("--out", type=Path, default=None, help="Markdown report (default: stdout)")
     args = p.parse_args(argv)
     if any(not t > 0 for t in args.tols):
@@ -178,6 +187,15 @@ def main(argv=None) -> int:
                     sim = meshrec.simulate_touch(lib[name], rng=k)
                     touches.append((name, sim.contact, sim.touch))
                 _compare(f"bench.shape_set({args.shapes}, seed=0)", lib, touches, args.tols, out)
+        if args.folder is not None:
+            lib = meshrec.ModelLibrary.from_folder(args.folder, cache_dir=args.cache_dir)
+            names = lib.names
+            touches = []
+            for k in range(args.folder_touches):
+                name = names[k % len(names)]
+                sim = meshrec.simulate_touch(lib[name], rng=k)
+                touches.append((name, sim.contact, sim.touch))
+            _compare(f"{args.folder.name} (`--folder`)", lib, touches, args.tols, out)
     finally:
         defaults.CHART_TOL = saved
     return finish(out, args.out)
