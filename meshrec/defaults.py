@@ -131,7 +131,7 @@ CHART_MAX_EVALS = 30
 #: refinement that follows polishes the result, so the search only has to reach the
 #: basin. 1e-3 instead of 1e-5 halves the solves' evaluations (5.6 instead of 11.6 per
 #: solve) and cuts the search stage by a third, with the same verdicts, best models and
-#: plausible sets on 32 seeded touches (tools/chart_tol.py, reports/chart_tol.md).
+#: plausible sets on 32 seeded touches (tools/tolerances.py, reports/chart_tol.md).
 CHART_TOL = 1e-3
 #: Iterations of the paper's steepest descent (reference method) at most.
 STEEPEST_MAX_ITER = 300

@@ -55,8 +55,8 @@ def refine_rigid_batch(
     model,
     points: np.ndarray,
     T_model_touch: np.ndarray,
-    max_iter: int = defaults.REFINE_MAX_ITER,
-    rel_tol: float = defaults.REFINE_REL_TOL,
+    max_iter: int | None = None,
+    rel_tol: float | None = None,
     initial: list[Residuals] | None = None,
 ) -> list[Refinement]:
     """:func:`~meshrec.registration.refine.refine_rigid` from each of several starts.
@@ -68,10 +68,12 @@ def refine_rigid_batch(
         Data points in the touch frame (the same for every start).
     T_model_touch : (k, 4, 4) float
         The starting transforms.
-    max_iter : int
-        Iterations at most, per start.
-    rel_tol : float
-        Stop a start when its sum of squares improves by less than this fraction.
+    max_iter : int, optional
+        Iterations at most, per start (default ``defaults.REFINE_MAX_ITER``, read at call
+        time).
+    rel_tol : float, optional
+        Stop a start when its sum of squares improves by less than this fraction (default
+        ``defaults.REFINE_REL_TOL``, read at call time).
     initial : list of Residuals, optional
         The residuals of ``points`` placed by each start
         (:func:`~meshrec.registration.objective.residuals` of
@@ -89,6 +91,8 @@ def refine_rigid_batch(
         If ``T_model_touch`` is not ``(k, 4, 4)``, ``points`` not ``(n, 3)`` with n >= 1, or
         ``initial`` does not hold one Residuals of ``n`` values per start.
     """
+    max_iter = defaults.REFINE_MAX_ITER if max_iter is None else max_iter
+    rel_tol = defaults.REFINE_REL_TOL if rel_tol is None else rel_tol
     T0 = np.asarray(T_model_touch, dtype=np.float64)
     if T0.ndim != 3 or T0.shape[1:] != (4, 4):
         raise ValueError(f"T_model_touch must have shape (k, 4, 4), got {T0.shape}")

@@ -105,8 +105,8 @@ def refine_rigid(
     model,
     points: np.ndarray,
     T_model_touch: np.ndarray,
-    max_iter: int = defaults.REFINE_MAX_ITER,
-    rel_tol: float = defaults.REFINE_REL_TOL,
+    max_iter: int | None = None,
+    rel_tol: float | None = None,
 ) -> Refinement:
     """Refine a rigid transform to minimise the squared point-to-surface distances.
 
@@ -117,10 +117,11 @@ def refine_rigid(
         Data points in the touch frame.
     T_model_touch : (4, 4) float
         Starting transform (touch frame to model coordinates).
-    max_iter : int
-        Iterations at most.
-    rel_tol : float
-        Stop when the sum of squares improves by less than this fraction.
+    max_iter : int, optional
+        Iterations at most (default ``defaults.REFINE_MAX_ITER``, read at call time).
+    rel_tol : float, optional
+        Stop when the sum of squares improves by less than this fraction (default
+        ``defaults.REFINE_REL_TOL``, read at call time).
 
     Returns
     -------
@@ -143,8 +144,8 @@ def refine_offset(
     points: np.ndarray,
     T_model_touch: np.ndarray,
     max_offset: float,
-    max_iter: int = defaults.REFINE_MAX_ITER,
-    rel_tol: float = defaults.REFINE_REL_TOL,
+    max_iter: int | None = None,
+    rel_tol: float | None = None,
     skip_below: float = 0.0,
 ) -> OffsetRefinement:
     """Refine a rigid transform and an outward offset R of the surface together.
@@ -176,10 +177,11 @@ def refine_offset(
         Starting transform (touch frame to model coordinates).
     max_offset : float
         The largest R, data units (>= 0).
-    max_iter : int
-        Iterations at most.
-    rel_tol : float
-        Stop when the sum of squares improves by less than this fraction, twice in a row.
+    max_iter : int, optional
+        Iterations at most (default ``defaults.REFINE_MAX_ITER``, read at call time).
+    rel_tol : float, optional
+        Stop when the sum of squares improves by less than this fraction, twice in a row
+        (default ``defaults.REFINE_REL_TOL``, read at call time).
     skip_below : float
         Do not refine when the linearised improvement is below this, squared data units.
 
@@ -247,6 +249,8 @@ def _moved(T: np.ndarray, A: np.ndarray, b: np.ndarray, lam: float, m, spread: f
 def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_offset, skip_below):
     """refine_rigid's loop, or refine_offset's (``max_offset`` given):
     (T, values, cost, iterations, offset, linearised drop at the start)."""
+    max_iter = defaults.REFINE_MAX_ITER if max_iter is None else max_iter
+    rel_tol = defaults.REFINE_REL_TOL if rel_tol is None else rel_tol
     T = np.array(T_model_touch, dtype=np.float64)
     values, gradient, radius = _evaluate(model, points, T, max_offset)
     cost = float(values @ values)

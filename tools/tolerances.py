@@ -1,26 +1,30 @@
-"""The local search's chart tolerance: what a looser one saves, and what it changes.
+"""A tolerance of the method: what a looser one saves, and what it changes.
 
-    nice -n 5 .venv/bin/python tools/chart_tol.py --tols 1e-5 1e-3 1e-2 \
+    nice -n 5 .venv/bin/python tools/tolerances.py --name CHART_TOL --values 1e-5 1e-3 1e-2 \
         --surfaces 3 --objects 3 --shapes 20 --shape-touches 8 --out reports/chart_tol.md
 
-Each local search (``meshrec.registration.search``) solves a least-squares problem over a
-surface chart's (u, v, phi) to the relative tolerance ``defaults.CHART_TOL`` (ftol and
-xtol), re-centres the chart and solves again until it stops moving; the rigid refinement
-that follows (``refine_searches``) polishes its answer. A looser tolerance stops each
-chart's solve sooner, and the refinement has a little more to do.
+``--name`` is one of the tolerances below (in ``meshrec.defaults``, read at call time):
+
+* ``CHART_TOL``: each local search (``meshrec.registration.search``) solves a least-squares
+  problem over a surface chart's (u, v, phi) to this relative tolerance (ftol and xtol),
+  re-centres the chart and solves again until it stops moving; the rigid refinement that
+  follows (``refine_searches``) polishes its answer.
+* ``REFINE_REL_TOL``: every rigid refinement (the final one of each search, the joint
+  ones of several touches, the probe-offset check's) stops at the first step that lowers
+  the sum of squares by less than this fraction.
 
 For seeded touches (``bench.paper_touch`` on the four paper surfaces and the four bundled
 objects, ``simulate_touch`` on ``bench.shape_set`` and on ``--folder DIR``, a library of
-your own: touch k on its model k modulo their number, seed k), every tolerance recognises
+your own: touch k on its model k modulo their number, seed k), every value recognises
 every touch, one after the other touch by touch (so that each touch's runs see about the
-same machine load). Per tolerance: verdicts, best models and plausible sets equal to those
-of the first tolerance given (the reference), the largest relative rise and fall of the
-best error (where the best model is the same), the localisation error of the best contact
-on the paper surfaces (modulo their symmetries: the mean, and the largest change against
-the reference; the other models' symmetries are not known here), the search stage's time
-(``Registration.times.search``, summed over the models) and the recognition's CPU time
-(``time.process_time``), medians per touch and as a ratio to the reference's.
-Uses only meshrec's public API, and sets ``meshrec.defaults.CHART_TOL``.
+same machine load). Per value: verdicts, best models and plausible sets equal to those of
+the first value given (the reference), the largest relative rise and fall of the best
+error (where the best model is the same), the localisation error of the best contact on
+the paper surfaces (modulo their symmetries: the mean, and the largest change against the
+reference; the other models' symmetries are not known here), the search and refinement
+stages' times (``Registration.times``, wall clock summed over the models) and the
+recognition's CPU time (``time.process_time``), medians per touch and as a ratio to the
+reference's. Uses only meshrec's public API, and sets the tolerance in ``meshrec.defaults``.
 """
 
 from __future__ import annotations
@@ -55,46 +59,51 @@ def _fmt(values: np.ndarray, stat) -> str:
     return "-" if len(finite) == 0 else f"{stat(finite):.4f}"
 
 
-def _run_one(touch, library, tol):
-    defaults.CHART_TOL = tol
+TOLERANCES = ("CHART_TOL", "REFINE_REL_TOL")
+
+
+def _run_one(touch, library, name, value):
+    setattr(defaults, name, value)
     c0 = time.process_time()
     rec = meshrec.recognize(touch, library)
     cpu = time.process_time() - c0
     search = sum(r.times.search for r in rec.ranking if r.times is not None)
-    return rec, cpu, search
+    refine = sum(r.times.refine for r in rec.ranking if r.times is not None)
+    return rec, cpu, search, refine
 
 
-def _compare(label, library, touches, tols, out):
-    """Every tolerance on every touch; append the library's table to ``out``."""
+def _compare(label, library, touches, name, values, out):
+    """Every value on every touch; append the library's table to ``out``."""
     meshrec.recognize(touches[0][2], library)  # warm: lazy tables, imports
-    rows = {t: [] for t in tols}
-    for name, contact, touch in touches:
-        for tol in tols:
-            rec, cpu, search = _run_one(touch, library, tol)
-            rows[tol].append(
+    rows = {v: [] for v in values}
+    for shape, contact, touch in touches:
+        for value in values:
+            rec, cpu, search, refine = _run_one(touch, library, name, value)
+            rows[value].append(
                 {
                     "verdict": rec.verdict,
                     "best": None if rec.best is None else rec.best.model,
                     "plausible": tuple(rec.plausible),
                     "error": np.nan if rec.best is None else rec.best.error,
-                    "loc": _localisation(name, contact, rec),
-                    "right": rec.best is not None and rec.best.model == name,
+                    "loc": _localisation(shape, contact, rec),
+                    "right": rec.best is not None and rec.best.model == shape,
                     "cpu": cpu,
                     "search": search,
+                    "refine": refine,
                 }
             )
-    ref = rows[tols[0]]
+    ref = rows[values[0]]
     n = len(touches)
     out.append(f"### {label}: {len(library)} models, {n} touches\n")
     out.append(
-        "| CHART_TOL | same verdict | same best | same plausible | right best | "
+        f"| {name} | same verdict | same best | same plausible | right best | "
         "best error, relative change: largest rise | largest fall | localisation "
-        "mean | localisation, largest change | search stage median (s) | CPU median (s) | "
-        "CPU / reference, median |"
+        "mean | localisation, largest change | search stage median (s) | refinement stage "
+        "median (s) | CPU median (s) | CPU / reference, median |"
     )
-    out.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for tol in tols:
-        r = rows[tol]
+    out.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for value in values:
+        r = rows[value]
         same_v = sum(a["verdict"] == b["verdict"] for a, b in zip(r, ref, strict=True))
         same_b = sum(a["best"] == b["best"] for a, b in zip(r, ref, strict=True))
         same_p = sum(a["plausible"] == b["plausible"] for a, b in zip(r, ref, strict=True))
@@ -109,10 +118,12 @@ def _compare(label, library, touches, tols, out):
         cpu = np.array([a["cpu"] for a in r])
         ratio = np.median(cpu / np.array([b["cpu"] for b in ref]))
         out.append(
-            f"| {tol:g} | {same_v}/{n} | {same_b}/{n} | {same_p}/{n} | {right}/{n} | "
-            f"{max(max(rel, default=0.0), 0.0):.2e} | {abs(min(min(rel, default=0.0), 0.0)):.2e} | "
+            f"| {value:g} | {same_v}/{n} | {same_b}/{n} | {same_p}/{n} | {right}/{n} | "
+            f"{max(max(rel, default=0.0), 0.0):.2e} | "
+            f"{abs(min(min(rel, default=0.0), 0.0)):.2e} | "
             f"{_fmt(loc, np.mean)} | {_fmt(dloc, np.max)} | "
-            f"{np.median([a['search'] for a in r]):.3f} | {np.median(cpu):.3f} | "
+            f"{np.median([a['search'] for a in r]):.3f} | "
+            f"{np.median([a['refine'] for a in r]):.3f} | {np.median(cpu):.3f} | "
             f"{ratio:.2f} |"
         )
     out.append("")
@@ -129,12 +140,13 @@ def _paper_touches(library, names, trials):
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--name", choices=TOLERANCES, default="CHART_TOL", help="the tolerance")
     p.add_argument(
-        "--tols",
+        "--values",
         type=float,
         nargs="+",
         default=[1e-5, 1e-3, 1e-2],
-        help="chart tolerances; the first is the reference",
+        help="its values; the first is the reference",
     )
     p.add_argument("--surfaces", type=int, default=3, help="touches per paper surface")
     p.add_argument("--objects", type=int, default=3, help="touches per bundled object")
@@ -150,31 +162,22 @@ def main(argv=None) -> int:
     p.add_argument("--cache-dir", type=Path, default=None, help="index cache for --folder")
     p.add_argument("--out", type=Path, default=None, help="Markdown report (default: stdout)")
     args = p.parse_args(argv)
-    if any(not t > 0 for t in args.tols):
-        p.error(f"--tols must be positive, got {args.tols}")
-    saved = defaults.CHART_TOL
-    out = [f"## The local search's chart tolerance (`defaults.CHART_TOL`, {saved:g} in use)\n"]
+    if any(not v > 0 for v in args.values):
+        p.error(f"--values must be positive, got {args.values}")
+    name, values = args.name, args.values
+    saved = getattr(defaults, name)
+    out = [f"## `defaults.{name}` ({saved:g} in use)\n"]
     try:
         if args.surfaces:
             lib = meshrec.ModelLibrary.from_folder(MODELS / "surfaces")
-            _compare(
-                "The four paper surfaces",
-                lib,
-                _paper_touches(lib, meshrec.PAPER_SURFACES, args.surfaces),
-                args.tols,
-                out,
-            )
+            touches = _paper_touches(lib, meshrec.PAPER_SURFACES, args.surfaces)
+            _compare("The four paper surfaces", lib, touches, name, values, out)
         if args.objects:
             lib = meshrec.ModelLibrary.from_folder(MODELS / "objects")
-            _compare(
-                "The four bundled objects",
-                lib,
-                _paper_touches(lib, lib.names, args.objects),
-                args.tols,
-                out,
-            )
+            touches = _paper_touches(lib, lib.names, args.objects)
+            _compare("The four bundled objects", lib, touches, name, values, out)
         if args.shapes:
-            with tempfile.TemporaryDirectory(prefix="meshrec-charttol-") as tmp:
+            with tempfile.TemporaryDirectory(prefix="meshrec-tolerances-") as tmp:
                 shapes = bench.shape_set(args.shapes, seed=0)
                 bench.write_shapes(shapes, Path(tmp) / "models")
                 lib = meshrec.ModelLibrary.from_folder(
@@ -183,21 +186,21 @@ def main(argv=None) -> int:
                 step = max(1, args.shapes // max(1, args.shape_touches))
                 touches = []
                 for k in range(args.shape_touches):
-                    name = shapes[(k * step) % args.shapes].name
-                    sim = meshrec.simulate_touch(lib[name], rng=k)
-                    touches.append((name, sim.contact, sim.touch))
-                _compare(f"bench.shape_set({args.shapes}, seed=0)", lib, touches, args.tols, out)
+                    shape = shapes[(k * step) % args.shapes].name
+                    sim = meshrec.simulate_touch(lib[shape], rng=k)
+                    touches.append((shape, sim.contact, sim.touch))
+                label = f"bench.shape_set({args.shapes}, seed=0)"
+                _compare(label, lib, touches, name, values, out)
         if args.folder is not None:
             lib = meshrec.ModelLibrary.from_folder(args.folder, cache_dir=args.cache_dir)
-            names = lib.names
             touches = []
             for k in range(args.folder_touches):
-                name = names[k % len(names)]
-                sim = meshrec.simulate_touch(lib[name], rng=k)
-                touches.append((name, sim.contact, sim.touch))
-            _compare(f"{args.folder.name} (`--folder`)", lib, touches, args.tols, out)
+                shape = lib.names[k % len(lib.names)]
+                sim = meshrec.simulate_touch(lib[shape], rng=k)
+                touches.append((shape, sim.contact, sim.touch))
+            _compare(f"{args.folder.name} (`--folder`)", lib, touches, name, values, out)
     finally:
-        defaults.CHART_TOL = saved
+        setattr(defaults, name, saved)
     return finish(out, args.out)
 
 
