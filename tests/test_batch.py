@@ -107,3 +107,32 @@ def test_a_large_query_answers_each_point_as_small_ones_do(model):
     # Coincident points (a degenerate bounding box) are answered too.
     same = np.repeat(P[:1], 600, axis=0)
     assert np.all(model.surface.closest_points(same)[0] == d[0])
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "keyword"),
+    [
+        ("REFINE_MAX_ITER", 2, "max_iter"),
+        ("REFINE_REL_TOL", 0.05, "rel_tol"),
+    ],
+)
+def test_defaults_are_read_at_call_time(model, monkeypatch, name, value, keyword):
+    """Without the argument, both refinements take meshrec.defaults' value as it is when
+    called (a tool or a user may tune it at run time): the same as passing it."""
+    rng = np.random.default_rng(11)
+    sim = meshrec.simulate_touch(model, rng=4)
+    points = sim.touch.points[::3]
+    T0 = _starts(sim, 3, rng)
+    want_batch = refine_rigid_batch(model, points, T0, **{keyword: value})
+    want_one = refine_rigid(model, points, T0[2], **{keyword: value})
+    full = refine_rigid(model, points, T0[2])
+    # The tuned value does change this refinement (else the test could not fail).
+    assert want_one.iterations < full.iterations
+    monkeypatch.setattr(meshrec.defaults, name, value)
+    got_batch = refine_rigid_batch(model, points, T0)
+    got_one = refine_rigid(model, points, T0[2])
+    for g, w in zip(got_batch, want_batch, strict=True):
+        np.testing.assert_array_equal(g.T_model_touch, w.T_model_touch)
+        assert g.iterations == w.iterations
+    np.testing.assert_array_equal(got_one.T_model_touch, want_one.T_model_touch)
+    assert got_one.iterations == want_one.iterations
