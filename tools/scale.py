@@ -50,11 +50,6 @@ def _rss_mb() -> float:
     return float("nan")
 
 
-def _library_folder(data: Path, n: int) -> Path:
-    """A folder holding the first ``n`` blobs (hard links to the shared files)."""
-    return blob_folder(data, n, f"library_{n}")
-
-
 def _answer(rec) -> tuple:
     """What a recognition answers: the verdict, the plausible models, the best model and its
     error (with workers the same screen and cascade run: the same answer, exactly)."""
@@ -74,7 +69,7 @@ def measure(n: int, args) -> dict:
     from meshrec.bench import paper_touch
 
     data = Path(args.data)
-    folder = _library_folder(data, n)
+    folder = blob_folder(data, n, f"library_{n}")
     cache = data / "cache"
     os.environ["MESHREC_CACHE_DIR"] = str(cache)
     rss_imports = _rss_mb()

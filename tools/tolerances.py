@@ -67,9 +67,8 @@ def _run_one(touch, library, name, value):
     c0 = time.process_time()
     rec = meshrec.recognize(touch, library)
     cpu = time.process_time() - c0
-    search = sum(r.times.search for r in rec.ranking if r.times is not None)
-    refine = sum(r.times.refine for r in rec.ranking if r.times is not None)
-    return rec, cpu, search, refine
+    stages = sum((r.times for r in rec.ranking), meshrec.StageTimes())
+    return rec, cpu, stages.search, stages.refine
 
 
 def _compare(label, library, touches, name, values, out):
