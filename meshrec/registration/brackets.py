@@ -23,7 +23,7 @@ from meshrec.registration.bounded import bounded_grid_errors, exact_samples, pla
 from meshrec.registration.chart import SurfacePoint, rotation_z
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.objective import mean_distances
-from meshrec.registration.phi import PhiSearch, bracket_minima, search_phi
+from meshrec.registration.phi import PhiSearch, bracket_minima, search_phis
 from meshrec.registration.sampling import even_subsample
 
 __all__ = ["PhiBrackets", "grid_errors", "phi_brackets", "phi_error", "refine_phis"]
@@ -226,7 +226,8 @@ def refine_phis(
     Returns
     -------
     tuple of PhiSearch
-        One per index, in order (see :func:`meshrec.registration.phi.search_phi`).
+        One per index, in order (see :func:`meshrec.registration.phi.search_phi`); all
+        their brackets are refined in lockstep (:func:`meshrec.registration.phi.search_phis`).
 
     Raises
     ------
@@ -245,16 +246,30 @@ def refine_phis(
         raise ValueError(
             f"brackets must be of these {c} candidates, got {brackets.errors.shape[0]}"
         )
-    out = []
+    chosen, local_subs, rows = [], [], []
     for k, i in enumerate(indices):
         i = check_int(i, f"indices[{k}]")
         if not 0 <= i < c:
             raise ValueError(f"indices must be in 0..{c - 1}, got {i!r}")
         local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
-        error = phi_error(model, candidates.origins[i], local_sub)
-        row = _exact_row(model, candidates.origins[i], local_sub, brackets, i, complete)
-        out.append(search_phi(error, steps=len(brackets.grid), grid_errors=row))
-    return tuple(out)
+        chosen.append(i)
+        local_subs.append(local_sub)
+        rows.append(_exact_row(model, candidates.origins[i], local_sub, brackets, i, complete))
+    if not chosen:
+        return ()
+    origins = [candidates.origins[i] for i in chosen]
+
+    def errors(which, phis):
+        # Each candidate's points placed as phi_error places them, all of them in one
+        # distance query (tests/test_bounded.py: the same bits as one angle at a time).
+        placed = np.empty((len(which), len(brackets.subset), 3))
+        for j in np.unique(which):
+            at = which == j
+            R = origins[j].frame @ rotation_z(phis[at])
+            placed[at] = np.einsum("kij,nj->kni", R, local_subs[j]) + origins[j].point
+        return mean_distances(model, placed)
+
+    return search_phis(errors, np.stack(rows))
 
 
 def _exact_row(

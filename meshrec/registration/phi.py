@@ -3,7 +3,8 @@
 Section 2.2.1 of the paper: with the contact fixed at a candidate point, the error depends
 on phi alone. [0, 2 pi) is discretised, every local minimum of the sampled error is
 bracketed by its two neighbours, and each bracket is refined (the paper bisects; we use
-scipy's bounded Brent method, a bracketing refinement that needs fewer evaluations).
+scipy's bounded Brent method, a bracketing refinement that needs fewer evaluations, run
+on every bracket at once by :mod:`meshrec.registration.brent`).
 """
 
 from __future__ import annotations
@@ -12,11 +13,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from meshrec import defaults
+from meshrec.registration.brent import minimize_bounded
 
-__all__ = ["PhiSearch", "bracket_minima", "search_phi"]
+__all__ = ["PhiSearch", "bracket_minima", "search_phi", "search_phis"]
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,8 @@ def search_phi(
     Parameters
     ----------
     error : callable
-        ``error(phis)`` maps a (k,) array of angles to their (k,) errors.
+        ``error(phis)`` maps a (k,) array of angles to their (k,) errors. The refinement
+        calls it with one angle at a time.
     steps : int
         Number of samples of [0, 2 pi).
     refine_ratio : float
@@ -112,37 +114,95 @@ def search_phi(
     """
     if int(steps) != steps or steps < 3:
         raise ValueError(f"steps must be an integer >= 3, got {steps!r}")
-    if not refine_ratio >= 1.0:
-        raise ValueError(f"refine_ratio must be >= 1, got {refine_ratio!r}")
-    step = 2.0 * np.pi / steps
-    grid = np.arange(steps) * step
     if grid_errors is None:
-        values = np.asarray(error(grid), dtype=np.float64)
+        values = np.asarray(error(np.arange(steps) * (2.0 * np.pi / steps)), dtype=np.float64)
     else:
         values = np.asarray(grid_errors, dtype=np.float64)
         if values.shape != (steps,):
             raise ValueError(f"grid_errors must be ({steps},), got {values.shape}")
-    best_sample = float(values.min())
-    minima = []
-    for i in bracket_minima(values):
-        if values[i] > refine_ratio * best_sample + 1e-300:
-            continue
-        res = minimize_scalar(
-            lambda x: float(error(np.array([x]))[0]),
-            bounds=(grid[i] - step, grid[i] + step),
-            method="bounded",
-            options={"xatol": xtol},
-        )
-        phi, val = float(res.x), float(res.fun)
-        if values[i] < val:  # the refinement cannot be worse than its bracket's sample
-            phi, val = float(grid[i]), float(values[i])
-        minima.append((phi % (2.0 * np.pi), val))
-    minima.sort(key=lambda m: m[1])
-    table = np.array(minima, dtype=np.float64).reshape(-1, 2)
-    return PhiSearch(
-        phi=float(table[0, 0]),
-        error=float(table[0, 1]),
-        grid=grid,
-        grid_errors=values,
-        minima=table,
+
+    def errors(rows, phis):
+        return np.array([error(np.array([phi]))[0] for phi in phis], dtype=np.float64)
+
+    return search_phis(errors, values[None, :], refine_ratio=refine_ratio, xtol=xtol)[0]
+
+
+def search_phis(
+    error: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    grid_errors: np.ndarray,
+    *,
+    refine_ratio: float = defaults.PHI_REFINE_RATIO,
+    xtol: float = defaults.PHI_XTOL,
+) -> tuple[PhiSearch, ...]:
+    """:func:`search_phi` for many candidates, every bracket refined in lockstep.
+
+    Each bracket is refined by scipy's bounded Brent method (as ``minimize_scalar`` with
+    ``method="bounded"`` would, to the bit), all of them at once by
+    :func:`meshrec.registration.brent.minimize_bounded`: ``error`` is called once per
+    step with every bracket still being refined.
+
+    Parameters
+    ----------
+    error : callable
+        ``error(rows, phis)``: (k,) candidate indices (rows of ``grid_errors``) and (k,)
+        angles to the (k,) errors of those candidates at those angles.
+    grid_errors : (c, steps) float
+        Each candidate's errors at the angles ``2 pi i / steps``.
+    refine_ratio : float
+        As in :func:`search_phi`, per candidate.
+    xtol : float
+        Absolute tolerance of the refinement, radians.
+
+    Returns
+    -------
+    tuple of PhiSearch
+        One per candidate, in order.
+
+    Raises
+    ------
+    ValueError
+        If ``grid_errors`` is not (c, steps) with steps >= 3 or has a non-finite value,
+        or ``refine_ratio`` < 1.
+    """
+    values = np.asarray(grid_errors, dtype=np.float64)
+    if values.ndim != 2 or values.shape[1] < 3:
+        raise ValueError(f"grid_errors must be (c, steps) with steps >= 3, got {values.shape}")
+    if not refine_ratio >= 1.0:
+        raise ValueError(f"refine_ratio must be >= 1, got {refine_ratio!r}")
+    steps = values.shape[1]
+    step = 2.0 * np.pi / steps
+    grid = np.arange(steps) * step
+    rows, samples = [], []
+    for row, row_values in enumerate(values):
+        best_sample = float(row_values.min())
+        for i in bracket_minima(row_values):
+            if row_values[i] <= refine_ratio * best_sample + 1e-300:
+                rows.append(row)
+                samples.append(i)
+    rows, samples = np.array(rows, dtype=np.int64), np.array(samples, dtype=np.int64)
+    res = minimize_bounded(
+        lambda problems, phis: error(rows[problems], phis),
+        grid[samples] - step,
+        grid[samples] + step,
+        xatol=xtol,
     )
+    minima = [[] for _ in range(len(values))]
+    for k, (row, i) in enumerate(zip(rows, samples, strict=True)):
+        phi, val = float(res.x[k]), float(res.fun[k])
+        if values[row, i] < val:  # the refinement cannot be worse than its bracket's sample
+            phi, val = float(grid[i]), float(values[row, i])
+        minima[row].append((phi % (2.0 * np.pi), val))
+    out = []
+    for row, found in enumerate(minima):
+        found.sort(key=lambda m: m[1])
+        table = np.array(found, dtype=np.float64).reshape(-1, 2)
+        out.append(
+            PhiSearch(
+                phi=float(table[0, 0]),
+                error=float(table[0, 1]),
+                grid=grid,
+                grid_errors=values[row],
+                minima=table,
+            )
+        )
+    return tuple(out)
