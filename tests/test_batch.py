@@ -33,8 +33,10 @@ def _starts(sim, k, rng):
     return np.array(out)
 
 
+@pytest.mark.parametrize("schedule", ["gain", "tenfold"])
 @pytest.mark.parametrize("max_iter", [0, 1, 3, 30])
-def test_each_start_is_refine_rigid_from_it(model, max_iter):
+def test_each_start_is_refine_rigid_from_it(model, max_iter, schedule, monkeypatch):
+    monkeypatch.setattr(meshrec.defaults, "REFINE_DAMPING_SCHEDULE", schedule)
     rng = np.random.default_rng(7)
     sim = meshrec.simulate_touch(model, rng=2)
     points = sim.touch.points[::3]

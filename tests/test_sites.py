@@ -94,10 +94,13 @@ def test_box_edge_touch_registers_with_a_warning(tmp_path):
         rec = recognize(sim.touch, lib)
     assert rec.best.model == "box"
     assert any("sharp edge" in w for w in rec.warnings)
-    # the contact lies on one of the box's four edges along y (|x| = 1, |z| = 0.5)
-    c = rec.best.contact
-    assert abs(abs(c[0]) - 1.0) < 0.05
-    assert abs(abs(c[2]) - 0.5) < 0.05
+    # The contact lies on an edge of the box: two of |x| = 1, |y| = 0.75, |z| = 0.5. Which
+    # edge the data cannot tell: the touch (curves about 0.8 long) stays within the faces
+    # next to the edge, and every edge of the box is the same right angle between planes
+    # (the fits on edges along x, y and z give the same rms; which one is found varies
+    # with the seed and with the refinements' damping schedule).
+    c = np.abs(np.asarray(rec.best.contact))
+    assert np.sum(np.abs(c - [1.0, 0.75, 0.5]) < 0.05) >= 2
 
 
 def test_a_touch_on_one_face_gives_no_edge_warning(tmp_path):

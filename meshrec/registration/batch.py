@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
+from meshrec.registration.damping import after_accept, after_reject, predicted_drop, schedule
 from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.refine import Refinement
 from meshrec.registration.transform import apply_transform
@@ -31,6 +32,8 @@ class _Start:
         self.res: Residuals | None = None
         self.cost = 0.0
         self.lam = defaults.REFINE_DAMPING
+        self.nu = 2.0
+        self.predicted = 0.0
         self.it = 0
         self.system = None  # (A, b, m, spread) of the current linearisation
         self.trial = None
@@ -106,6 +109,7 @@ def refine_rigid_batch(
             f"initial must hold one Residuals of {len(P)} values per start ({len(T0)}), got "
             f"{[np.shape(r.values) for r in initial]}"
         )
+    name = schedule()
     starts = [_Start(np.array(T)) for T in T0]
     if not starts:
         return []
@@ -135,14 +139,18 @@ def refine_rigid_batch(
         # the same bits as one start at a time (LAPACK solves each system alone, scipy
         # converts each rotation vector alone), without a Python call per start (a
         # look-alike's three-touch recognition made about 13,000 of each).
+        diags = [np.diag(s.system[0]) + _DIAG_FLOOR for s in trials]
         steps = np.linalg.solve(
-            np.array([_damped(s.system[0], s.lam) for s in trials]),
+            np.array(
+                [s.system[0] + s.lam * np.diag(d) for s, d in zip(trials, diags, strict=True)]
+            ),
             np.array([s.system[1] for s in trials])[:, :, None],
         )[:, :, 0]
         turns = Rotation.from_rotvec(
             steps[:, :3] * np.array([s.system[3] for s in trials])[:, None]
         ).as_matrix()
-        for s, step, turn in zip(trials, steps, turns, strict=True):
+        for s, step, turn, diag in zip(trials, steps, turns, diags, strict=True):
+            s.predicted = predicted_drop(step, s.system[1], s.lam, diag)
             m = s.system[2]
             D = np.eye(4)
             D[:3, :3] = turn
@@ -153,13 +161,13 @@ def refine_rigid_batch(
             cost_new = float(r.values @ r.values)
             if cost_new < s.cost:
                 improvement = (s.cost - cost_new) / max(s.cost, 1e-300)
+                s.lam, s.nu = after_accept(name, s.lam, s.nu, s.cost - cost_new, s.predicted)
                 s.T, s.res, s.cost = s.trial, r, cost_new
-                s.lam = max(s.lam / defaults.REFINE_DAMPING_FACTOR, defaults.REFINE_MIN_DAMPING)
                 s.system = None
                 if improvement < rel_tol or s.it >= max_iter:
                     s.done = True
             else:
-                s.lam *= defaults.REFINE_DAMPING_FACTOR
+                s.lam, s.nu = after_reject(name, s.lam, s.nu)
     out = []
     for s in starts:
         absval = np.abs(s.res.values)
@@ -172,11 +180,6 @@ def refine_rigid_batch(
             )
         )
     return out
-
-
-def _damped(A: np.ndarray, lam: float) -> np.ndarray:
-    """refine_rigid's damped normal matrix."""
-    return A + lam * np.diag(np.diag(A) + _DIAG_FLOOR)
 
 
 def _linearise(s: _Start, P: np.ndarray):

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
+from meshrec.registration.damping import after_accept, after_reject, predicted_drop, schedule
 from meshrec.registration.objective import residuals
 from meshrec.registration.transform import apply_transform
 
@@ -235,15 +236,17 @@ def _jacobian(T: np.ndarray, points: np.ndarray, gradient: np.ndarray):
 
 
 def _moved(T: np.ndarray, A: np.ndarray, b: np.ndarray, lam: float, m, spread: float):
-    """``T`` moved by the damped step of the normal equations ``A x = b``."""
+    """``T`` moved by the damped step of the normal equations ``A x = b``, and the drop of
+    the sum of squares the linearisation predicts for it."""
     # Marquardt's scaling of the damping by diag(A); the floor keeps the system
     # regular for a column that vanishes (e.g. all gradients parallel).
-    step = np.linalg.solve(A + lam * np.diag(np.diag(A) + _DIAG_FLOOR), b)
+    diag = np.diag(A) + _DIAG_FLOOR
+    step = np.linalg.solve(A + lam * np.diag(diag), b)
     w, t = step[:3] * spread, step[3:]
     D = np.eye(4)
     D[:3, :3] = Rotation.from_rotvec(w).as_matrix()
     D[:3, 3] = m + t - D[:3, :3] @ m
-    return D @ T
+    return D @ T, predicted_drop(step, b, lam, diag)
 
 
 def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_offset, skip_below):
@@ -254,7 +257,8 @@ def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_of
     T = np.array(T_model_touch, dtype=np.float64)
     values, gradient, radius = _evaluate(model, points, T, max_offset)
     cost = float(values @ values)
-    lam = defaults.REFINE_DAMPING
+    name = schedule()
+    lam, nu = defaults.REFINE_DAMPING, 2.0
     it = 0
     small = False
     linear = float("nan")
@@ -271,18 +275,18 @@ def _levenberg_marquardt(model, points, T_model_touch, max_iter, rel_tol, max_of
             A, b = _offset_system(J, values, radius, max_offset)
         accepted = False
         while lam < defaults.REFINE_MAX_DAMPING:
-            T_new = _moved(T, A, b, lam, m, spread)
+            T_new, predicted = _moved(T, A, b, lam, m, spread)
             values_new, gradient_new, radius_new = _evaluate(model, points, T_new, max_offset)
             cost_new = float(values_new @ values_new)
             if cost_new < cost:
                 accepted = True
                 break
-            lam *= defaults.REFINE_DAMPING_FACTOR
+            lam, nu = after_reject(name, lam, nu)
         if not accepted:
             break
         improvement = (cost - cost_new) / max(cost, 1e-300)
+        lam, nu = after_accept(name, lam, nu, cost - cost_new, predicted)
         T, values, gradient, radius, cost = T_new, values_new, gradient_new, radius_new, cost_new
-        lam = max(lam / defaults.REFINE_DAMPING_FACTOR, defaults.REFINE_MIN_DAMPING)
         # refine_offset stops at the second small step in a row: from the rigid optimum
         # its first steps are damped hard (R and the translation along the normal are
         # nearly one direction there), and stopping at the first small one left R near 0
