@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 import meshrec
 from meshrec import defaults
+from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.damping import (
     SCHEDULES,
     after_accept,
@@ -87,3 +88,15 @@ def test_both_schedules_find_a_known_pose(sphere, name, monkeypatch):
     off = refine_offset(sphere, sim.touch.points, start, max_offset=0.05 * radius)
     assert off.rms < 1e-4 * radius
     assert off.radius < 1e-4 * radius
+
+
+def test_refinements_refuse_an_unknown_schedule(sphere, monkeypatch):
+    sim = meshrec.simulate_touch(sphere, rng=2, noise=0.0)
+    monkeypatch.setattr(defaults, "REFINE_DAMPING_SCHEDULE", "fast")
+    T = sim.T_model_touch[None]
+    with pytest.raises(ValueError, match="REFINE_DAMPING_SCHEDULE must be one of"):
+        refine_rigid(sphere, sim.touch.points, sim.T_model_touch)
+    with pytest.raises(ValueError, match="REFINE_DAMPING_SCHEDULE must be one of"):
+        refine_offset(sphere, sim.touch.points, sim.T_model_touch, max_offset=0.1)
+    with pytest.raises(ValueError, match="REFINE_DAMPING_SCHEDULE must be one of"):
+        refine_rigid_batch(sphere, sim.touch.points, T)

@@ -91,8 +91,10 @@ def refine_rigid_batch(
     Raises
     ------
     ValueError
-        If ``T_model_touch`` is not ``(k, 4, 4)``, ``points`` not ``(n, 3)`` with n >= 1, or
-        ``initial`` does not hold one Residuals of ``n`` values per start.
+        If ``T_model_touch`` is not ``(k, 4, 4)``, ``points`` not ``(n, 3)`` with n >= 1,
+        ``initial`` does not hold one Residuals of ``n`` values per start, or
+        ``defaults.REFINE_DAMPING_SCHEDULE`` is not one of
+        :data:`meshrec.registration.damping.SCHEDULES`.
     """
     max_iter = defaults.REFINE_MAX_ITER if max_iter is None else max_iter
     rel_tol = defaults.REFINE_REL_TOL if rel_tol is None else rel_tol

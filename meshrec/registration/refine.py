@@ -127,6 +127,12 @@ def refine_rigid(
     Returns
     -------
     Refinement
+
+    Raises
+    ------
+    ValueError
+        If ``defaults.REFINE_DAMPING_SCHEDULE`` is not one of
+        :data:`meshrec.registration.damping.SCHEDULES`.
     """
     T, values, cost, it, _, _ = _levenberg_marquardt(
         model, points, T_model_touch, max_iter, rel_tol, None, 0.0
@@ -193,7 +199,9 @@ def refine_offset(
     Raises
     ------
     ValueError
-        If ``max_offset`` is negative or not finite.
+        If ``max_offset`` is negative or not finite, or
+        ``defaults.REFINE_DAMPING_SCHEDULE`` not one of
+        :data:`meshrec.registration.damping.SCHEDULES`.
     """
     if not (math.isfinite(max_offset) and max_offset >= 0.0):
         raise ValueError(f"max_offset must be finite and >= 0, got {max_offset!r}")
