@@ -13,6 +13,7 @@ from meshrec.registration.damping import (
     SCHEDULES,
     after_accept,
     after_reject,
+    damped_system,
     predicted_drop,
     schedule,
 )
@@ -100,3 +101,15 @@ def test_refinements_refuse_an_unknown_schedule(sphere, monkeypatch):
         refine_offset(sphere, sim.touch.points, sim.T_model_touch, max_offset=0.1)
     with pytest.raises(ValueError, match="REFINE_DAMPING_SCHEDULE must be one of"):
         refine_rigid_batch(sphere, sim.touch.points, T)
+
+
+def test_damped_system_is_marquardts():
+    rng = np.random.default_rng(4)
+    J = rng.normal(size=(30, 6))
+    J[:, 2] = 0.0  # a vanishing column: the floor keeps the system regular
+    A = J.T @ J
+    damped, diag = damped_system(A, 0.5)
+    np.testing.assert_array_equal(np.diag(damped), np.diag(A) + 0.5 * diag)
+    np.testing.assert_array_equal(damped - np.diag(np.diag(damped)), A - np.diag(np.diag(A)))
+    assert diag[2] > 0.0
+    assert np.isfinite(np.linalg.solve(damped, rng.normal(size=6))).all()

@@ -13,15 +13,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
-from meshrec.registration.damping import after_accept, after_reject, predicted_drop, schedule
+from meshrec.registration.damping import (
+    after_accept,
+    after_reject,
+    damped_system,
+    predicted_drop,
+    schedule,
+)
 from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.refine import Refinement
 from meshrec.registration.transform import apply_transform
 
 __all__ = ["refine_rigid_batch"]
-
-#: As in meshrec.registration.refine: a guard against a singular system, not a tuning value.
-_DIAG_FLOOR = 1e-12
 
 
 class _Start:
@@ -141,11 +144,9 @@ def refine_rigid_batch(
         # the same bits as one start at a time (LAPACK solves each system alone, scipy
         # converts each rotation vector alone), without a Python call per start (a
         # look-alike's three-touch recognition made about 13,000 of each).
-        diags = [np.diag(s.system[0]) + _DIAG_FLOOR for s in trials]
+        damped, diags = zip(*(damped_system(s.system[0], s.lam) for s in trials), strict=True)
         steps = np.linalg.solve(
-            np.array(
-                [s.system[0] + s.lam * np.diag(d) for s, d in zip(trials, diags, strict=True)]
-            ),
+            np.array(damped),
             np.array([s.system[1] for s in trials])[:, :, None],
         )[:, :, 0]
         turns = Rotation.from_rotvec(

@@ -118,11 +118,15 @@ def phi_error(model, origin: SurfacePoint, local_points: np.ndarray):
     """
 
     def error(phis):
-        R = origin.frame @ rotation_z(phis)  # (k, 3, 3)
-        placed = np.einsum("kij,nj->kni", R, local_points) + origin.point
-        return mean_distances(model, placed)
+        return mean_distances(model, _placed_at(origin, local_points, phis))
 
     return error
+
+
+def _placed_at(origin: SurfacePoint, local_points: np.ndarray, phis: np.ndarray) -> np.ndarray:
+    """(k, n, 3) float: ``local_points`` placed at ``origin`` rotated by each of ``phis``."""
+    R = origin.frame @ rotation_z(phis)  # (k, 3, 3)
+    return np.einsum("kij,nj->kni", R, local_points) + origin.point
 
 
 def phi_brackets(
@@ -265,8 +269,7 @@ def refine_phis(
         placed = np.empty((len(which), len(brackets.subset), 3))
         for j in np.unique(which):
             at = which == j
-            R = origins[j].frame @ rotation_z(phis[at])
-            placed[at] = np.einsum("kij,nj->kni", R, local_subs[j]) + origins[j].point
+            placed[at] = _placed_at(origins[j], local_subs[j], phis[at])
         return mean_distances(model, placed)
 
     return search_phis(errors, np.stack(rows))

@@ -28,10 +28,22 @@ import numpy as np
 
 from meshrec import defaults
 
-__all__ = ["SCHEDULES", "after_accept", "after_reject", "predicted_drop", "schedule"]
+__all__ = [
+    "SCHEDULES",
+    "after_accept",
+    "after_reject",
+    "damped_system",
+    "predicted_drop",
+    "schedule",
+]
 
 #: The damping schedules (see the module's description).
 SCHEDULES = ("gain", "tenfold")
+
+#: Added to diag(A) before damping: a numerical guard against a singular system (a column
+#: of J that vanishes, e.g. all gradients parallel), not a tuning value (far below any
+#: squared residual gradient, which are of order 1).
+_DIAG_FLOOR = 1e-12
 
 
 def schedule() -> str:
@@ -53,6 +65,28 @@ def schedule() -> str:
             f"defaults.REFINE_DAMPING_SCHEDULE must be one of {SCHEDULES}, got {name!r}"
         )
     return name
+
+
+def damped_system(A: np.ndarray, lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """The normal matrix damped as Marquardt scales it, and the scaling.
+
+    Parameters
+    ----------
+    A : (p, p) float
+        ``J^T J``.
+    lam : float
+        The damping.
+
+    Returns
+    -------
+    damped : (p, p) float
+        ``A + lam diag(diag)``.
+    diag : (p,) float
+        ``diag(A)`` and a floor that keeps the system regular (for
+        :func:`predicted_drop`).
+    """
+    diag = np.diag(A) + _DIAG_FLOOR
+    return A + lam * np.diag(diag), diag
 
 
 def predicted_drop(step: np.ndarray, b: np.ndarray, lam: float, diag: np.ndarray) -> float:

@@ -30,15 +30,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
-from meshrec.registration.damping import after_accept, after_reject, predicted_drop, schedule
+from meshrec.registration.damping import (
+    after_accept,
+    after_reject,
+    damped_system,
+    predicted_drop,
+    schedule,
+)
 from meshrec.registration.objective import residuals
 from meshrec.registration.transform import apply_transform
 
 __all__ = ["OffsetRefinement", "Refinement", "refine_offset", "refine_rigid"]
 
-#: Added to diag(A) before damping: a numerical guard against a singular system, not a
-#: tuning value (far below any squared residual gradient, which are of order 1).
-_DIAG_FLOOR = 1e-12
 #: Singular values below this fraction of the largest are dropped in refine_offset's
 #: undamped step (a sphere's spin about its centre, a tube's slide: directions of no
 #: change, whose rounding noise would otherwise predict large improvements).
@@ -246,10 +249,8 @@ def _jacobian(T: np.ndarray, points: np.ndarray, gradient: np.ndarray):
 def _moved(T: np.ndarray, A: np.ndarray, b: np.ndarray, lam: float, m, spread: float):
     """``T`` moved by the damped step of the normal equations ``A x = b``, and the drop of
     the sum of squares the linearisation predicts for it."""
-    # Marquardt's scaling of the damping by diag(A); the floor keeps the system
-    # regular for a column that vanishes (e.g. all gradients parallel).
-    diag = np.diag(A) + _DIAG_FLOOR
-    step = np.linalg.solve(A + lam * np.diag(diag), b)
+    damped, diag = damped_system(A, lam)
+    step = np.linalg.solve(damped, b)
     w, t = step[:3] * spread, step[3:]
     D = np.eye(4)
     D[:3, :3] = Rotation.from_rotvec(w).as_matrix()
