@@ -87,6 +87,31 @@ PHI_XTOL = 2e-3
 #: whole grid's CPU time (0.32 and 0.55 of its point distances); (3, 6, 12, 24),
 #: (4, 8, 16, 24, 30), (9, 18, 27) and (12, 24) took 0.47 to 0.59 and 0.67 to 0.79.
 PHI_BOUND_ROUNDS = (6, 12, 24)
+#: How the phi grid's distances are computed: "fields" (local height-fields at the
+#: candidates, :mod:`meshrec.registration.fields`, exact by bounds where a field may not
+#: hold) or "exact" (closest-point queries by bounds, PHI_BOUND_ROUNDS, as until stop 26).
+#: The grid only ranks the candidates and gives their starting angles; every later stage
+#: is exact. See docs/performance.md, "The phi grid from height-fields".
+PHI_GRID_DISTANCES = "fields"
+#: Sites fitted per field (the nearest, thinned so that about FIELD_FILL * FIELD_NEIGHBOURS
+#: lie within the field's reach).
+FIELD_NEIGHBOURS = 40
+FIELD_FILL = 0.8
+#: A field reaches this factor times the data's largest distance from the contact across
+#: the normal.
+FIELD_REACH = 1.1
+#: Degree of the fields' polynomials, and the weight of a slope equation in their fits.
+FIELD_DEGREE = 4
+FIELD_SLOPE_WEIGHT = 1.0
+#: A field is trusted only if its farthest neighbour is at least this fraction of the reach
+#: away (the sites cover it) ...
+FIELD_MIN_COVER = 0.75
+#: ... the neighbours' mean offset across the normal is at most this fraction of the
+#: farthest's distance (no rim of an open surface beside it) ...
+FIELD_MAX_OFFCENTRE = 0.3
+#: ... and the fit's RMS height residual is at most this fraction of the reach (no fold,
+#: no curvature too high for the polynomial); no crease site may be among the neighbours.
+FIELD_MAX_RESIDUAL = 0.02
 
 # --- local search on surface charts (Section 2.2.1) and final refinement --------------------
 #: Candidates (best by their phi error) that get a full local search.

@@ -78,7 +78,7 @@ def test_phi_brackets_and_refine_phis_read_what_the_whole_grid_gives(cases):
         best = full.min(axis=1)
         order = np.argsort(best, kind="stable")
         order = order[best[order] <= defaults.SEARCH_PRUNE_RATIO * best[order[0]]]
-        brackets = phi_brackets(model, cands)
+        brackets = phi_brackets(model, cands, distances="exact")
         limit = defaults.SCREEN_CANDIDATES
         assert np.array_equal(brackets.order[:limit], order[:limit])
         for i in order[:limit]:
@@ -100,7 +100,7 @@ def test_phi_brackets_and_refine_phis_read_what_the_whole_grid_gives(cases):
 def test_refine_phis_completes_a_row_whose_best_is_only_bounded(cases):
     checked = 0
     for model, cands, local in cases:
-        brackets = phi_brackets(model, cands, ranked=1)
+        brackets = phi_brackets(model, cands, ranked=1, distances="exact")
         e, x = brackets.errors, brackets.exact
         # Candidates whose least sample is only a bound: refined as on the whole grid.
         loose = [

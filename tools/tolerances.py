@@ -15,6 +15,8 @@
 * ``REFINE_DAMPING_SCHEDULE`` (values are names, ``gain`` or ``tenfold``): how those
   refinements' Levenberg-Marquardt damping moves between steps
   (``meshrec.registration.damping``).
+* ``PHI_GRID_DISTANCES`` (names, ``exact`` or ``fields``): how the phi grid of stage 2
+  computes its distances (``meshrec.registration.fields``).
 
 For seeded touches (``bench.paper_touch`` on the four paper surfaces and the four bundled
 objects, ``simulate_touch`` on ``bench.shape_set`` and on ``--folder DIR``, a library of
@@ -25,8 +27,8 @@ to those of the first value given (the reference), the median relative change of
 error and its largest rise and fall (where the best model is the same), the localisation
 error of the best contact on the paper surfaces (modulo their symmetries: the mean, and
 the largest change against the reference; the other models' symmetries are not known
-here), the search and refinement
-stages' times (``Registration.times``, wall clock summed over the models) and the
+here), the phi, screening, search and
+refinement stages' times (``Registration.times``, wall clock summed over the models) and the
 recognition's CPU time (``time.process_time``), medians per touch and as a ratio to the
 reference's. Uses only meshrec's public API, and sets the tolerance in ``meshrec.defaults``.
 """
@@ -63,9 +65,9 @@ def _fmt(values: np.ndarray, stat) -> str:
     return "-" if len(finite) == 0 else f"{stat(finite):.4f}"
 
 
-TOLERANCES = ("CHART_TOL", "REFINE_REL_TOL", "REFINE_DAMPING_SCHEDULE")
+TOLERANCES = ("CHART_TOL", "REFINE_REL_TOL", "REFINE_DAMPING_SCHEDULE", "PHI_GRID_DISTANCES")
 #: The settings whose values are names rather than numbers.
-NAMED = ("REFINE_DAMPING_SCHEDULE",)
+NAMED = ("REFINE_DAMPING_SCHEDULE", "PHI_GRID_DISTANCES")
 
 
 def _show(value) -> str:
@@ -78,7 +80,7 @@ def _run_one(touch, library, name, value):
     rec = meshrec.recognize(touch, library)
     cpu = time.process_time() - c0
     stages = sum((r.times for r in rec.ranking), meshrec.StageTimes())
-    return rec, cpu, stages.search, stages.refine
+    return rec, cpu, stages
 
 
 def _compare(label, library, touches, name, values, out):
@@ -87,7 +89,7 @@ def _compare(label, library, touches, name, values, out):
     rows = {v: [] for v in values}
     for shape, contact, touch in touches:
         for value in values:
-            rec, cpu, search, refine = _run_one(touch, library, name, value)
+            rec, cpu, stages = _run_one(touch, library, name, value)
             rows[value].append(
                 {
                     "verdict": rec.verdict,
@@ -97,8 +99,10 @@ def _compare(label, library, touches, name, values, out):
                     "loc": _localisation(shape, contact, rec),
                     "right": rec.best is not None and rec.best.model == shape,
                     "cpu": cpu,
-                    "search": search,
-                    "refine": refine,
+                    "phi": stages.phi,
+                    "screen": stages.screen,
+                    "search": stages.search,
+                    "refine": stages.refine,
                 }
             )
     ref = rows[values[0]]
@@ -107,10 +111,11 @@ def _compare(label, library, touches, name, values, out):
     out.append(
         f"| {name} | same verdict | same best | same plausible | right best | "
         "best error, relative change: median | largest rise | largest fall | localisation "
-        "mean | localisation, largest change | search stage median (s) | refinement stage "
-        "median (s) | CPU median (s) | CPU / reference, median |"
+        "mean | localisation, largest change | phi stage median (s) | screening stage median "
+        "(s) | search stage median (s) | refinement stage median (s) | CPU median (s) | "
+        "CPU / reference, median |"
     )
-    out.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out.append("|" + "---:|" * 16)
     for value in values:
         r = rows[value]
         same_v = sum(a["verdict"] == b["verdict"] for a, b in zip(r, ref, strict=True))
@@ -134,6 +139,8 @@ def _compare(label, library, touches, name, values, out):
             f"{max(max(rel, default=0.0), 0.0):.2e} | "
             f"{abs(min(min(rel, default=0.0), 0.0)):.2e} | "
             f"{_fmt(loc, np.mean)} | {_fmt(dloc, np.max)} | "
+            f"{np.median([a['phi'] for a in r]):.3f} | "
+            f"{np.median([a['screen'] for a in r]):.3f} | "
             f"{np.median([a['search'] for a in r]):.3f} | "
             f"{np.median([a['refine'] for a in r]):.3f} | {np.median(cpu):.3f} | "
             f"{ratio:.2f} |"

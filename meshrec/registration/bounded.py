@@ -51,12 +51,16 @@ class BoundedGrid:
         at least ``ranked`` candidates of less error.
     evaluated : int
         Point distances computed (``c * s * n`` for the whole grid).
+    estimated : (c,) bool or None
+        The rows that are height-field estimates, not bounds
+        (:func:`meshrec.registration.fields.field_grid_errors`); None: none.
     """
 
     errors: np.ndarray = field(repr=False)
     exact: np.ndarray = field(repr=False)
     settled: np.ndarray = field(repr=False)
     evaluated: int
+    estimated: np.ndarray | None = field(default=None, repr=False)
 
 
 def placed_grid(

@@ -11,22 +11,34 @@ a local search (stage 4, after the screening).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from meshrec import defaults
-from meshrec.io.checks import check_instance, check_int
+from meshrec.io.checks import check_choice, check_instance, check_int
 from meshrec.model.index import ModelIndex
 from meshrec.registration.bounded import bounded_grid_errors, exact_samples, placed_grid
 from meshrec.registration.chart import SurfacePoint, rotation_z
+from meshrec.registration.fields import field_grid_errors
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.objective import mean_distances
 from meshrec.registration.phi import PhiSearch, bracket_minima, search_phis
 from meshrec.registration.sampling import even_subsample
 
-__all__ = ["PhiBrackets", "grid_errors", "phi_brackets", "phi_error", "refine_phis"]
+__all__ = [
+    "PHI_GRID_DISTANCES",
+    "PhiBrackets",
+    "grid_errors",
+    "phi_brackets",
+    "phi_error",
+    "refine_phis",
+]
+
+#: The ways :func:`phi_brackets` computes its samples.
+PHI_GRID_DISTANCES = ("fields", "exact")
 
 
 @dataclass(frozen=True)
@@ -41,16 +53,19 @@ class PhiBrackets:
         The sampled angles, ``2 pi i / s``, radians.
     errors : (c, s) float
         Mean point-to-surface distance of the subsample at each candidate and angle where
-        ``exact``; elsewhere a lower bound of it (see
-        :mod:`meshrec.registration.bounded`: such samples are above every threshold the
-        later stages apply).
+        ``exact``. Elsewhere, on a candidate's row whose height-field holds, its estimate
+        from the field (:mod:`meshrec.registration.fields`); on the other rows a lower
+        bound of it (see :mod:`meshrec.registration.bounded`: such samples are above
+        every threshold the later stages apply).
     order : (k,) int
         The candidates kept, best sampled error first (stable); those whose best sample
-        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned. Exact in
-        its first ``ranked`` entries (``phi_brackets``); after them, the candidates
-        whose best is only bounded follow, least bound first.
+        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned. Exact or
+        estimated in its first ``ranked`` entries (``phi_brackets``); after them, the
+        candidates whose best is only bounded follow, least bound first.
     exact : (c, s) bool or None
         Which samples of ``errors`` are exact (None: all of them).
+    estimated : (c,) bool or None
+        The rows that are height-field estimates (None: none).
     """
 
     subset: np.ndarray = field(repr=False)
@@ -58,6 +73,7 @@ class PhiBrackets:
     errors: np.ndarray = field(repr=False)
     order: np.ndarray = field(repr=False)
     exact: np.ndarray | None = field(default=None, repr=False)
+    estimated: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def best(self) -> np.ndarray:
@@ -137,6 +153,7 @@ def phi_brackets(
     n_points: int = defaults.PHI_POINTS,
     prune_ratio: float = defaults.SEARCH_PRUNE_RATIO,
     ranked: int | None = defaults.SCREEN_CANDIDATES,
+    distances: str | None = None,
 ) -> PhiBrackets:
     """Sample the error against phi at every candidate, and rank the candidates.
 
@@ -156,6 +173,11 @@ def phi_brackets(
         Only the first ``ranked`` of ``order`` are read (the screening's limit,
         ``defaults.SCREEN_CANDIDATES``): candidates surely behind them are left with
         bounds of their errors. None: ``order`` is exact throughout.
+    distances : {"fields", "exact"}, optional
+        How the samples are computed: local height-field estimates where the fields hold
+        (:func:`meshrec.registration.fields.field_grid_errors`) or closest-point queries
+        (:func:`meshrec.registration.bounded.bounded_grid_errors`). None:
+        ``defaults.PHI_GRID_DISTANCES``, read at call time.
 
     Returns
     -------
@@ -166,7 +188,8 @@ def phi_brackets(
     TypeError
         If ``model`` is not a ModelIndex or ``candidates`` not a ContactCandidates.
     ValueError
-        If ``candidates`` is empty, ``steps`` is below 3 or ``n_points`` below 1.
+        If ``candidates`` is empty, ``steps`` is below 3, ``n_points`` below 1 or
+        ``distances`` is unknown.
     """
     check_instance(model, ModelIndex, "model")
     check_instance(candidates, ContactCandidates, "candidates")
@@ -174,11 +197,17 @@ def phi_brackets(
         raise ValueError("candidates must hold at least one candidate, got none")
     if not isinstance(steps, (int, np.integer)) or steps < 3:
         raise ValueError(f"steps must be an integer >= 3, got {steps!r}")
+    if distances is None:
+        distances = defaults.PHI_GRID_DISTANCES
+    check_choice(distances, PHI_GRID_DISTANCES, "distances")
     subset = even_subsample(len(candidates.points), n_points)
-    local_sub = [candidates.local_points[k][subset] for k in candidates.side]
-    # Exact wherever the ranking, the pruning and the screening's starts read it: the
-    # same as grid_errors there. refine_phis completes the rows it reads.
-    grid = bounded_grid_errors(
+    sides = [candidates.local_points[k][subset] for k in range(len(candidates.local_points))]
+    local_sub = [sides[k] for k in candidates.side]  # one array per side, shared
+    # "exact": exact wherever the ranking, the pruning and the screening's starts read
+    # it, the same as grid_errors there; "fields": estimates where the fields hold.
+    # refine_phis completes (exactly) the rows it reads.
+    grid_of = field_grid_errors if distances == "fields" else bounded_grid_errors
+    grid = grid_of(
         model,
         candidates.origins,
         local_sub,
@@ -201,6 +230,7 @@ def phi_brackets(
         errors=errors,
         order=order,
         exact=grid.exact,
+        estimated=grid.estimated,
     )
 
 
@@ -250,7 +280,7 @@ def refine_phis(
         raise ValueError(
             f"brackets must be of these {c} candidates, got {brackets.errors.shape[0]}"
         )
-    chosen, local_subs, rows = [], [], []
+    chosen, local_subs, rows, estimated = [], [], [], []
     for k, i in enumerate(indices):
         i = check_int(i, f"indices[{k}]")
         if not 0 <= i < c:
@@ -258,7 +288,15 @@ def refine_phis(
         local_sub = candidates.local_points[candidates.side[i]][brackets.subset]
         chosen.append(i)
         local_subs.append(local_sub)
-        rows.append(_exact_row(model, candidates.origins[i], local_sub, brackets, i, complete))
+        guess = brackets.estimated is not None and bool(brackets.estimated[i])
+        estimated.append(guess)
+        # An estimated row is searched as it is (its brackets' values are computed
+        # exactly by search_phis); a bounded one is completed where the search reads it.
+        rows.append(
+            brackets.errors[i]
+            if guess
+            else _exact_row(model, candidates.origins[i], local_sub, brackets, i, complete)
+        )
     if not chosen:
         return ()
     origins = [candidates.origins[i] for i in chosen]
@@ -272,7 +310,21 @@ def refine_phis(
             placed[at] = _placed_at(origins[j], local_subs[j], phis[at])
         return mean_distances(model, placed)
 
-    return search_phis(errors, np.stack(rows))
+    found = search_phis(errors, np.stack(rows), estimated=np.array(estimated))
+    if not complete or not any(estimated):
+        return found
+    # Pictures and traces: the estimated rows shown exact (the angles are the same).
+    return tuple(
+        dataclasses.replace(
+            f,
+            grid_errors=exact_samples(
+                model, origins[j], local_subs[j], len(brackets.grid), np.arange(len(brackets.grid))
+            ),
+        )
+        if estimated[j]
+        else f
+        for j, f in enumerate(found)
+    )
 
 
 def _exact_row(

@@ -133,6 +133,7 @@ def search_phis(
     *,
     refine_ratio: float = defaults.PHI_REFINE_RATIO,
     xtol: float = defaults.PHI_XTOL,
+    estimated: np.ndarray | None = None,
 ) -> tuple[PhiSearch, ...]:
     """:func:`search_phi` for many candidates, every bracket refined in lockstep.
 
@@ -152,6 +153,11 @@ def search_phis(
         As in :func:`search_phi`, per candidate.
     xtol : float
         Absolute tolerance of the refinement, radians.
+    estimated : (c,) bool, optional
+        Rows of ``grid_errors`` that are estimates (height-fields): their brackets are
+        chosen from them, but each bracket's own sample is computed by ``error`` (one more
+        call) before it is compared with its refinement, so that every reported error is
+        ``error``'s. None: no row is.
 
     Returns
     -------
@@ -162,7 +168,7 @@ def search_phis(
     ------
     ValueError
         If ``grid_errors`` is not (c, steps) with steps >= 3 or has a non-finite value,
-        or ``refine_ratio`` < 1.
+        ``refine_ratio`` < 1, or ``estimated`` is not (c,).
     """
     values = np.asarray(grid_errors, dtype=np.float64)
     if values.ndim != 2 or values.shape[1] < 3:
@@ -180,6 +186,15 @@ def search_phis(
                 rows.append(row)
                 samples.append(i)
     rows, samples = np.array(rows, dtype=np.int64), np.array(samples, dtype=np.int64)
+    centre = values[rows, samples]
+    if estimated is not None:
+        estimated = np.asarray(estimated, dtype=bool)
+        if estimated.shape != (len(values),):
+            raise ValueError(f"estimated must be ({len(values)},), got {estimated.shape}")
+        guess = np.flatnonzero(estimated[rows])
+        if len(guess):
+            centre = centre.copy()
+            centre[guess] = error(rows[guess], grid[samples[guess]])
     res = minimize_bounded(
         lambda problems, phis: error(rows[problems], phis),
         grid[samples] - step,
@@ -189,8 +204,8 @@ def search_phis(
     minima = [[] for _ in range(len(values))]
     for k, (row, i) in enumerate(zip(rows, samples, strict=True)):
         phi, val = float(res.x[k]), float(res.fun[k])
-        if values[row, i] < val:  # the refinement cannot be worse than its bracket's sample
-            phi, val = float(grid[i]), float(values[row, i])
+        if centre[k] < val:  # the refinement cannot be worse than its bracket's sample
+            phi, val = float(grid[i]), float(centre[k])
         minima[row].append((phi % (2.0 * np.pi), val))
     out = []
     for row, found in enumerate(minima):
