@@ -167,6 +167,33 @@ def test_search_phis_is_the_scipy_search_of_each_candidate():
         assert np.array_equal(alone.minima, want)
 
 
+def test_estimated_rows_keep_their_brackets_but_report_exact_errors():
+    # A row of estimates (the exact samples lifted by a constant, as a biased field
+    # would give): the same brackets, so the same refinements; every reported error is
+    # the function's, not the estimate's, also where a bracket's own sample wins.
+    grid = np.arange(defaults.PHI_STEPS) * (2.0 * np.pi / defaults.PHI_STEPS)
+
+    def f(phis):
+        return 1.0 + 0.5 * np.cos(3.0 * np.asarray(phis, dtype=float)) ** 2
+
+    exact = f(grid)[None, :]
+
+    def many(which, phis):
+        return f(phis)
+
+    want = search_phis(many, exact)[0]
+    got = search_phis(many, exact + 0.3, estimated=np.array([True]))[0]
+    assert np.array_equal(got.minima, want.minima)
+    assert got.error == want.error
+    assert np.array_equal(got.grid_errors, exact[0] + 0.3)  # the row as it was given
+    # Told nothing, the lifted samples lose to every refinement: the same answer here,
+    # but with estimates *below* the function a sample would replace its refinement.
+    low = search_phis(many, exact - 0.3, estimated=np.array([True]))[0]
+    assert np.allclose(low.minima[:, 1], f(low.minima[:, 0]), rtol=0, atol=0)
+    with pytest.raises(ValueError, match=r"estimated must be \(1,\), got \(2,\)"):
+        search_phis(many, exact, estimated=np.array([True, False]))
+
+
 @pytest.mark.parametrize(
     ("grid", "kwargs", "match"),
     [

@@ -298,8 +298,10 @@ def phi_profile(
     errors, brackets and refined minima are the ones the registration computed (for a
     candidate it did not search, its brackets are refined here by the same stage,
     :func:`meshrec.registration.brackets.refine_phis`); only the fine curve is sampled
-    anew, with the data's common point on the candidate and their normal along the
-    model's.
+    anew (exact distances), with the data's common point on the candidate and their
+    normal along the model's. Where the registration sampled the error from a local
+    height-field (``defaults.PHI_GRID_DISTANCES``), the samples are those estimates, so
+    the picture shows how far they are from the curve.
 
     Parameters
     ----------

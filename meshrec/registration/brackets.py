@@ -11,7 +11,6 @@ a local search (stage 4, after the screening).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -253,9 +252,11 @@ def refine_phis(
     indices : sequence of int
         The candidates whose brackets to refine.
     complete : bool
-        Give every ``PhiSearch.grid_errors`` exact (for pictures and traces). False:
-        exact only where the refinement reads it (within ``defaults.PHI_REFINE_RATIO`` of
-        the best), a lower bound elsewhere; the refined angles are the same.
+        Give every ``PhiSearch.grid_errors`` of a bounded row exact (for pictures and
+        traces). False: exact only where the refinement reads it (within
+        ``defaults.PHI_REFINE_RATIO`` of the best), a lower bound elsewhere; the refined
+        angles are the same. A row of height-field estimates is given as the search used
+        it either way (its refined minima are exact).
 
     Returns
     -------
@@ -310,21 +311,7 @@ def refine_phis(
             placed[at] = _placed_at(origins[j], local_subs[j], phis[at])
         return mean_distances(model, placed)
 
-    found = search_phis(errors, np.stack(rows), estimated=np.array(estimated))
-    if not complete or not any(estimated):
-        return found
-    # Pictures and traces: the estimated rows shown exact (the angles are the same).
-    return tuple(
-        dataclasses.replace(
-            f,
-            grid_errors=exact_samples(
-                model, origins[j], local_subs[j], len(brackets.grid), np.arange(len(brackets.grid))
-            ),
-        )
-        if estimated[j]
-        else f
-        for j, f in enumerate(found)
-    )
+    return search_phis(errors, np.stack(rows), estimated=np.array(estimated))
 
 
 def _exact_row(

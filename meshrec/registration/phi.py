@@ -33,7 +33,8 @@ class PhiSearch:
     grid : (s,) float
         The sampled angles.
     grid_errors : (s,) float
-        The error at each sampled angle.
+        The error at each sampled angle (from :func:`search_phis`, an estimate on a row
+        it was told is estimated).
     minima : (m, 2) float
         Every refined local minimum as rows (phi, error), best first.
     """
