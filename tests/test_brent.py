@@ -182,15 +182,15 @@ def test_estimated_rows_keep_their_brackets_but_report_exact_errors():
         return f(phis)
 
     want = search_phis(many, exact)[0]
-    got = search_phis(many, exact + 0.3, estimated=np.array([True]))[0]
+    got = search_phis(many, exact + 0.3, estimated=np.ones_like(exact, dtype=bool))[0]
     assert np.array_equal(got.minima, want.minima)
     assert got.error == want.error
     assert np.array_equal(got.grid_errors, exact[0] + 0.3)  # the row as it was given
     # Told nothing, the lifted samples lose to every refinement: the same answer here,
     # but with estimates *below* the function a sample would replace its refinement.
-    low = search_phis(many, exact - 0.3, estimated=np.array([True]))[0]
+    low = search_phis(many, exact - 0.3, estimated=np.ones_like(exact, dtype=bool))[0]
     assert np.allclose(low.minima[:, 1], f(low.minima[:, 0]), rtol=0, atol=0)
-    with pytest.raises(ValueError, match=r"estimated must be \(1,\), got \(2,\)"):
+    with pytest.raises(ValueError, match=r"estimated must be \(1, 36\), got \(2,\)"):
         search_phis(many, exact, estimated=np.array([True, False]))
 
 

@@ -290,7 +290,7 @@ def refine_phis(
         chosen.append(i)
         local_subs.append(local_sub)
         guess = brackets.estimated is not None and bool(brackets.estimated[i])
-        estimated.append(guess)
+        estimated.append(~brackets.exact[i] if guess else np.zeros(len(brackets.grid), bool))
         # An estimated row is searched as it is (its brackets' values are computed
         # exactly by search_phis); a bounded one is completed where the search reads it.
         rows.append(
@@ -311,7 +311,7 @@ def refine_phis(
             placed[at] = _placed_at(origins[j], local_subs[j], phis[at])
         return mean_distances(model, placed)
 
-    return search_phis(errors, np.stack(rows), estimated=np.array(estimated))
+    return search_phis(errors, np.stack(rows), estimated=np.stack(estimated))
 
 
 def _exact_row(

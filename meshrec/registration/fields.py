@@ -38,6 +38,7 @@ from meshrec.model.neighbours import site_neighbours
 from meshrec.model.probe import probe_radius_of
 from meshrec.registration.bounded import BoundedGrid, bounded_grid_errors
 from meshrec.registration.chart import SurfacePoint, rotation_z
+from meshrec.registration.objective import mean_distances
 
 __all__ = ["CandidateFields", "candidate_fields", "field_grid_errors"]
 
@@ -202,6 +203,9 @@ def field_grid_errors(
     fields = candidate_fields(model, origins, reach) if reach > 0 else None
     reliable = fields.reliable if fields is not None else np.zeros(c, dtype=bool)
     Rz = rotation_z(np.arange(steps) * (2.0 * np.pi / steps))  # (s, 3, 3)
+    frames = np.array([o.frame for o in origins], dtype=np.float64).reshape(-1, 3, 3)
+    centres = np.array([o.point for o in origins], dtype=np.float64).reshape(-1, 3)
+
     for key, rows in groups.items():
         rows = np.asarray(rows, dtype=np.int64)
         good = rows[reliable[rows]]
@@ -214,6 +218,7 @@ def field_grid_errors(
         )  # (s n, g)
         errors[good] = dist.reshape(steps, len(lp), len(good)).mean(axis=1).T
     rest = np.flatnonzero(~reliable)
+    least = np.inf
     if len(rest):
         sub = bounded_grid_errors(
             model,
@@ -226,6 +231,51 @@ def field_grid_errors(
         )
         errors[rest], exact[rest], settled[rest] = sub.errors, sub.exact, sub.settled
         evaluated = sub.evaluated
+        if sub.settled.any():
+            least = float(sub.errors[sub.settled].min())
+    # Rows estimated far above the least error (by a margin for the estimates' own
+    # error) are left as estimates, unsettled (ranked after the settled rows, as bounded
+    # rows are); the others have their low minima computed exactly.
+    est_best = errors.min(axis=1)
+    good = np.flatnonzero(reliable)
+    if len(good):
+        least = min(least, float(est_best[good].min()))
+        near = good[est_best[good] <= defaults.FIELD_PRUNE_MARGIN * prune_ratio * least]
+        settled[good] = False
+        settled[near] = True
+        for key, rows in groups.items():
+            rows = np.intersect1d(np.asarray(rows, dtype=np.int64), near)
+            if len(rows):
+                errors[rows], exact[rows] = _verified(
+                    model, errors[rows], arrays[key], frames[rows], centres[rows], Rz
+                )
     return BoundedGrid(
         errors=errors, exact=exact, settled=settled, evaluated=evaluated, estimated=reliable.copy()
     )
+
+
+def _verified(model, est, local, frames, centres, Rz):
+    """Estimated rows with their low local minima and those minima's neighbours computed
+    exactly; the other samples scaled by the exact-to-estimated ratio at the best of them
+    and kept above it, so that each row's least sample is exact and is where the
+    screening starts, as on the exact path."""
+    best = est.min(axis=1, keepdims=True)
+    low = (
+        (est <= np.roll(est, 1, axis=1))
+        & (est <= np.roll(est, -1, axis=1))
+        & (est <= defaults.FIELD_VERIFY_RATIO * best)
+    )
+    verify = low | np.roll(low, 1, axis=1) | np.roll(low, -1, axis=1)
+    rows, cols = np.nonzero(verify)
+    R = np.einsum("kij,kjl->kil", frames[rows], Rz[cols])
+    pts = np.einsum("kij,nj->kni", R, local) + centres[rows][:, None, :]
+    out = est.copy()
+    out[rows, cols] = mean_distances(model, pts)
+    masked = np.where(verify, out, np.inf)
+    at = np.argmin(masked, axis=1)
+    g = np.arange(len(est))
+    floor = masked[g, at]
+    ratio = np.where(est[g, at] > 0.0, floor / np.where(est[g, at] > 0.0, est[g, at], 1.0), 1.0)
+    # Strictly above the floor: a row's least sample (the screening's start) is exact.
+    scaled = np.maximum(est * ratio[:, None], np.nextafter(floor, np.inf)[:, None])
+    return np.where(verify, out, scaled), verify

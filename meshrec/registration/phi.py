@@ -154,11 +154,11 @@ def search_phis(
         As in :func:`search_phi`, per candidate.
     xtol : float
         Absolute tolerance of the refinement, radians.
-    estimated : (c,) bool, optional
-        Rows of ``grid_errors`` that are estimates (height-fields): their brackets are
-        chosen from them, but each bracket's own sample is computed by ``error`` (one more
-        call) before it is compared with its refinement, so that every reported error is
-        ``error``'s. None: no row is.
+    estimated : (c, steps) bool, optional
+        The samples of ``grid_errors`` that are estimates (height-fields): the brackets
+        are chosen from them, but a bracket whose own sample is an estimate has it
+        computed by ``error`` (one more call for all of them) before it is compared with
+        its refinement, so that every reported error is ``error``'s. None: none is.
 
     Returns
     -------
@@ -169,7 +169,7 @@ def search_phis(
     ------
     ValueError
         If ``grid_errors`` is not (c, steps) with steps >= 3 or has a non-finite value,
-        ``refine_ratio`` < 1, or ``estimated`` is not (c,).
+        ``refine_ratio`` < 1, or ``estimated`` is not of the shape of ``grid_errors``.
     """
     values = np.asarray(grid_errors, dtype=np.float64)
     if values.ndim != 2 or values.shape[1] < 3:
@@ -190,9 +190,9 @@ def search_phis(
     centre = values[rows, samples]
     if estimated is not None:
         estimated = np.asarray(estimated, dtype=bool)
-        if estimated.shape != (len(values),):
-            raise ValueError(f"estimated must be ({len(values)},), got {estimated.shape}")
-        guess = np.flatnonzero(estimated[rows])
+        if estimated.shape != values.shape:
+            raise ValueError(f"estimated must be {values.shape}, got {estimated.shape}")
+        guess = np.flatnonzero(estimated[rows, samples])
         if len(guess):
             centre = centre.copy()
             centre[guess] = error(rows[guess], grid[samples[guess]])
