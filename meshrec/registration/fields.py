@@ -235,23 +235,34 @@ def field_grid_errors(
             least = float(sub.errors[sub.settled].min())
     # Rows estimated far above the least error (by a margin for the estimates' own
     # error) are left as estimates, unsettled (ranked after the settled rows, as bounded
-    # rows are); the others have their low minima computed exactly.
-    est_best = errors.min(axis=1)
+    # rows are); the others have their low minima computed exactly. The least error is
+    # an exact one (the least estimates can be far below theirs): the rows of the least
+    # estimates are verified first.
     good = np.flatnonzero(reliable)
     if len(good):
-        least = min(least, float(est_best[good].min()))
-        near = good[est_best[good] <= defaults.FIELD_PRUNE_MARGIN * prune_ratio * least]
+        est_best = errors[good].min(axis=1)
+        first = good[np.argsort(est_best, kind="stable")[: defaults.FIELD_VERIFY_FIRST]]
+        _verify(model, errors, exact, first, groups, arrays, frames, centres, Rz)
+        least = min(least, float(errors[first].min()))
+        near = good[est_best <= defaults.FIELD_PRUNE_MARGIN * prune_ratio * least]
+        near = np.setdiff1d(near, first)
+        _verify(model, errors, exact, near, groups, arrays, frames, centres, Rz)
         settled[good] = False
+        settled[first] = True
         settled[near] = True
-        for key, rows in groups.items():
-            rows = np.intersect1d(np.asarray(rows, dtype=np.int64), near)
-            if len(rows):
-                errors[rows], exact[rows] = _verified(
-                    model, errors[rows], arrays[key], frames[rows], centres[rows], Rz
-                )
     return BoundedGrid(
         errors=errors, exact=exact, settled=settled, evaluated=evaluated, estimated=reliable.copy()
     )
+
+
+def _verify(model, errors, exact, rows, groups, arrays, frames, centres, Rz) -> None:
+    """:func:`_verified` on ``rows`` of ``errors`` and ``exact``, in place, per side."""
+    for key, members in groups.items():
+        sel = np.intersect1d(np.asarray(members, dtype=np.int64), rows)
+        if len(sel):
+            errors[sel], exact[sel] = _verified(
+                model, errors[sel], arrays[key], frames[sel], centres[sel], Rz
+            )
 
 
 def _verified(model, est, local, frames, centres, Rz):
