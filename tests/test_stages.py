@@ -266,6 +266,7 @@ def test_stage_inputs_are_checked(surfaces, touch, traced):
         (lambda: register(touch, model, searches=0), "searches must be >= 1, got 0"),
         (lambda: register(touch, model, method="x"), "method must be one of"),
         (lambda: phi_brackets(model, cands, steps=2), "steps must be an integer >= 3, got 2"),
+        (lambda: phi_brackets(model, cands, distances="x"), "distances must be one of"),
         (lambda: refine_phis(model, fewer, brackets, [0]), "brackets must be of these"),
         (lambda: refine_phis(model, cands, brackets, [len(cands)]), "indices must be in 0.."),
         (lambda: screen_candidates(model, fewer, brackets), "brackets must be of these"),

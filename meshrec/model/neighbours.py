@@ -80,10 +80,11 @@ def site_neighbours(
     Raises
     ------
     TypeError
-        If ``table`` is not a CurvatureTable.
+        If ``table`` is not a CurvatureTable, ``radius`` not a real number or ``k`` not
+        an integer.
     ValueError
         If ``points`` is not (c, 3) with c >= 1 or not finite, ``radius`` is not positive
-        and finite, or ``k`` is not an integer >= 1.
+        and finite, or ``k`` is below 1.
     """
     check_instance(table, CurvatureTable, "table")
     points = np.asarray(points, dtype=np.float64)

@@ -21,6 +21,12 @@ that do not reach ``defaults.FIELD_MIN_COVER`` of it or sit to one side (a rim o
 surface, a fold), a fit whose height residual exceeds
 ``defaults.FIELD_MAX_RESIDUAL`` of the reach (folds, high curvature), and any model seen
 through a ball-tipped probe (its distances are to the offset surface).
+
+Where a field holds, its row is checked where the later stages read it: the row's local
+minima within ``defaults.FIELD_VERIFY_RATIO`` of its least estimate, and their
+neighbours, are computed exactly and the other samples scaled to them, so that the
+ranking, the pruning and the screening's starts read exact values; rows estimated far
+above the pruning threshold (``defaults.FIELD_PRUNE_MARGIN``) are not checked.
 """
 
 from __future__ import annotations
@@ -169,8 +175,12 @@ def field_grid_errors(
     Returns
     -------
     BoundedGrid
-        ``estimated`` marks the rows from the fields: ``exact`` is False on them and they
-        are ``settled`` (their least sample is their best estimate).
+        ``estimated`` marks the rows from the fields. Those whose least estimate is
+        within ``defaults.FIELD_PRUNE_MARGIN`` times the pruning threshold are
+        ``settled``: their low minima and those minima's neighbours are exact (``exact``),
+        the least of them the row's least sample, and the rest are estimates scaled to
+        them. The others are unsettled estimates, ranked after the settled rows.
+        ``evaluated`` counts the exact point distances.
 
     Raises
     ------
@@ -250,6 +260,7 @@ def field_grid_errors(
         settled[good] = False
         settled[first] = True
         settled[near] = True
+        evaluated += int(exact[good].sum()) * len(next(iter(arrays.values())))
     return BoundedGrid(
         errors=errors, exact=exact, settled=settled, evaluated=evaluated, estimated=reliable.copy()
     )
