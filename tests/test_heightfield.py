@@ -93,6 +93,22 @@ def test_batched_gaps_match_one_field_at_a_time():
             assert dist[p, c] == pytest.approx(abs(0.4 * (z - g)), abs=1e-12)
 
 
+@pytest.mark.parametrize("slopes", [False, True])
+def test_distances_in_blocks_are_each_points_own(slopes):
+    # More points than one block: every row as when the point is evaluated alone.
+    rng = np.random.default_rng(4)
+    coef = rng.normal(size=(5, 15)) * 0.1
+    pts = rng.uniform(-0.4, 0.4, (700, 3))
+    whole = heightfield_distances(coef, pts, 0.4, slopes=slopes)
+    alone = np.vstack([heightfield_distances(coef, p[None], 0.4, slopes=slopes) for p in pts])
+    assert np.allclose(whole, alone, rtol=1e-12, atol=1e-15)
+    if slopes:
+        gx = monomials(pts[:, :2] / 0.4, 4, 0) @ coef.T
+        gy = monomials(pts[:, :2] / 0.4, 4, 1) @ coef.T
+        gaps = np.abs(heightfield_gaps(coef, pts, 0.4))
+        assert np.allclose(whole, gaps / np.sqrt(1 + gx * gx + gy * gy), rtol=1e-12)
+
+
 def test_samples_facing_away_are_left_out():
     # Samples of the plane z = 0 plus samples of a far plane facing the other way (the
     # other side of a thin part): the fit is the plane z = 0.

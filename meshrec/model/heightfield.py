@@ -188,6 +188,10 @@ def fit_heightfields(
     return np.linalg.solve(A, b[..., None])[..., 0]
 
 
+#: Points per block of the batched products (see heightfield_distances).
+_BLOCK = 256
+
+
 def heightfield_distances(
     coefficients: np.ndarray,
     local_points: np.ndarray,
@@ -228,13 +232,21 @@ def heightfield_distances(
     coefficients, local_points, radius = _checked(coefficients, local_points, radius, degree)
     s = local_points / radius
     G = coefficients.T
-    gap = np.abs(s[:, 2:3] - monomials(s[:, :2], degree) @ G)
-    if not slopes:
-        gap *= radius
-        return gap
-    gx = monomials(s[:, :2], degree, 0) @ G
-    gy = monomials(s[:, :2], degree, 1) @ G
-    return radius * gap / np.sqrt(1.0 + gx * gx + gy * gy)
+    out = np.empty((len(s), G.shape[1]))
+    # In blocks of points: each product then stays below OpenBLAS's threshold for
+    # threading, whose idle threads spin on the other core after every call (measured on
+    # 1,296 points x 100 fields: the same wall time, twice the CPU time; in blocks of 256
+    # points, the CPU time equals the wall time).
+    for a in range(0, len(s), _BLOCK):
+        b = s[a : a + _BLOCK]
+        gap = np.abs(b[:, 2:3] - monomials(b[:, :2], degree) @ G)
+        if slopes:
+            gx = monomials(b[:, :2], degree, 0) @ G
+            gy = monomials(b[:, :2], degree, 1) @ G
+            gap /= np.sqrt(1.0 + gx * gx + gy * gy)
+        out[a : a + _BLOCK] = gap
+    out *= radius
+    return out
 
 
 def heightfield_gaps(

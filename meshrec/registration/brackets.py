@@ -58,9 +58,11 @@ class PhiBrackets:
         every threshold the later stages apply).
     order : (k,) int
         The candidates kept, best sampled error first (stable); those whose best sample
-        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned. Exact or
-        estimated in its first ``ranked`` entries (``phi_brackets``); after them, the
-        candidates whose best is only bounded follow, least bound first.
+        exceeds ``defaults.SEARCH_PRUNE_RATIO`` times the least one are pruned. Exact in
+        its first ``ranked`` entries (``phi_brackets``; on a height-field row the least
+        sample is computed exactly); after them, the candidates whose best is only
+        bounded, or estimated far above the threshold and not checked, follow, least
+        first.
     exact : (c, s) bool or None
         Which samples of ``errors`` are exact (None: all of them).
     estimated : (c,) bool or None
