@@ -5,7 +5,7 @@ import pytest
 from analytic_meshes import index_of, sphere
 
 from meshrec import defaults
-from meshrec.model.neighbours import site_neighbours
+from meshrec.model.neighbours import site_neighbours, site_ranks
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +81,15 @@ def test_bad_arguments_raise(ball, kwargs, error, message):
     args.update(kwargs)
     with pytest.raises(error, match=message):
         site_neighbours(**args)
+
+
+def test_site_ranks_are_seeded_by_the_count_alone():
+    a, b = site_ranks(500), site_ranks(500)
+    assert np.array_equal(a, b)
+    assert np.array_equal(a, np.random.default_rng([defaults.SCREEN_SEED, 500]).random(500))
+    assert not np.array_equal(site_ranks(501)[:500], a)
+    assert site_ranks(0).shape == (0,)
+    with pytest.raises(ValueError, match="n must be >= 0, got -1"):
+        site_ranks(-1)
+    with pytest.raises(TypeError, match="n must be an integer"):
+        site_ranks(2.5)

@@ -24,7 +24,7 @@ from meshrec import defaults
 from meshrec.io.checks import check_instance, check_int, check_number
 from meshrec.model.curvature import CurvatureTable
 
-__all__ = ["SiteNeighbours", "site_neighbours"]
+__all__ = ["SiteNeighbours", "site_neighbours", "site_ranks"]
 
 _LOCK = threading.Lock()
 #: Points whose site counts within the reach choose the thinning level (evenly spread).
@@ -113,6 +113,34 @@ def site_neighbours(
     return SiteNeighbours(indices=keep[nb], distances=dist, level=level)
 
 
+def site_ranks(n: int) -> np.ndarray:
+    """A seeded uniform number per site of a table of ``n`` sites: the sites of rank below
+    ``f`` are an even random fraction ``f`` of them.
+
+    Seeded by ``defaults.SCREEN_SEED`` and ``n`` only, so a model's ranks do not depend on
+    its place in a library (the library-wide screen thins its sites by them as well).
+
+    Parameters
+    ----------
+    n : int
+        The table's site count (>= 0).
+
+    Returns
+    -------
+    (n,) float64
+        In [0, 1).
+
+    Raises
+    ------
+    TypeError
+        If ``n`` is not an integer.
+    ValueError
+        If ``n`` is negative.
+    """
+    n = check_int(n, "n", minimum=0)
+    return np.random.default_rng([defaults.SCREEN_SEED, n]).random(n)
+
+
 def _tree(table: CurvatureTable, level: int) -> tuple[np.ndarray, cKDTree]:
     """The sites kept at ``level`` and their KD-tree, built on first use."""
     cache = table.__dict__.get("_neighbour_trees")
@@ -124,7 +152,6 @@ def _tree(table: CurvatureTable, level: int) -> tuple[np.ndarray, cKDTree]:
                 if level == 0:
                     keep = np.arange(n, dtype=np.int64)
                 else:
-                    rank = np.random.default_rng([defaults.SCREEN_SEED, n]).random(n)
-                    keep = np.flatnonzero(rank < 2.0**-level).astype(np.int64)
+                    keep = np.flatnonzero(site_ranks(n) < 2.0**-level).astype(np.int64)
                 cache[level] = (keep, cKDTree(np.asarray(table.points)[keep]))
     return cache[level]

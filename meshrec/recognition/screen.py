@@ -46,6 +46,7 @@ from meshrec.io.checks import check_instance, check_int
 from meshrec.io.touch import TouchData
 from meshrec.model.heightfield import fit_heightfields, monomials
 from meshrec.model.index import ModelIndex
+from meshrec.model.neighbours import site_ranks
 from meshrec.model.probe import probe_radius_of
 from meshrec.recognition.scoring import effective_points
 from meshrec.registration.candidates import curvature_tolerance
@@ -158,10 +159,7 @@ class LibrarySites:
             closed.append(bool(m.mesh.closed))
         arrays = {k: np.concatenate(v) for k, v in parts.items()}
         # Each model's ranks from its own site count only: the same whatever the order.
-        seed = defaults.SCREEN_SEED
-        rank = np.concatenate(
-            [np.random.default_rng([seed, len(k)]).random(len(k)) for k in parts["K"]]
-        )
+        rank = np.concatenate([site_ranks(len(k)) for k in parts["K"]])
         return cls(
             names=tuple(m.name for m in models),
             rank=rank,

@@ -210,7 +210,9 @@ def field_grid_errors(
     exact = np.zeros((c, steps), dtype=bool)
     settled = np.ones(c, dtype=bool)
     evaluated = 0
-    fields = candidate_fields(model, origins, reach) if reach > 0 else None
+    # Through a ball tip no field holds (candidate_fields says so too): no fit at all.
+    usable = reach > 0 and probe_radius_of(model) == 0.0
+    fields = candidate_fields(model, origins, reach) if usable else None
     reliable = fields.reliable if fields is not None else np.zeros(c, dtype=bool)
     Rz = rotation_z(np.arange(steps) * (2.0 * np.pi / steps))  # (s, 3, 3)
     frames = np.array([o.frame for o in origins], dtype=np.float64).reshape(-1, 3, 3)
