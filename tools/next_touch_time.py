@@ -8,6 +8,14 @@ Reported per object: the median CPU time of the process (user + system, from
 and the same for the interpreter starting and importing what the command imports (the
 package's import: the floor of any command).
 
+Bytecode: an installed package is imported from its compiled bytecode (``pip install``
+writes it; Python writes it on first import). This sandbox sets
+``PYTHONDONTWRITEBYTECODE=1`` and installs meshrec editable, so by default every command
+here would compile meshrec's sources again (measured: about 0.3 s of each command).
+``--bytecode warm`` (the default) lets the children write bytecode to a temporary
+``PYTHONPYCACHEPREFIX``, written by the untimed first run, as on a user's machine;
+``--bytecode none`` keeps the environment as it is (no bytecode for meshrec).
+
     .venv/bin/python tools/next_touch_time.py --runs 3 --out reports/next_touch_time.md
 
 Uses only meshrec's public API (and its command line).
@@ -43,12 +51,16 @@ def _timed(cmd: list[str], env: dict) -> tuple[float, float, int]:
     return cpu, wall, done.returncode
 
 
-def run(runs: int, seed: int, log) -> list[dict]:
+def run(runs: int, seed: int, log, bytecode: str = "warm") -> list[dict]:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(Path(meshrec.__file__).resolve().parents[1])
     library = meshrec.ModelLibrary.from_folder(meshrec.bundled_models_dir("objects"))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        if bytecode == "warm":
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = str(Path(tmp) / "pycache")
+        _timed([sys.executable, "-c", _IMPORT], env)  # writes the bytecode (warm)
         floor = [_timed([sys.executable, "-c", _IMPORT], env) for _ in range(runs)]
         rows.append(
             {
@@ -83,13 +95,19 @@ def report(rows, args, seconds) -> str:
     lines = [
         "# `meshrec next-touch`: time of the whole command",
         "",
-        f"Command: `python tools/next_touch_time.py --runs {args.runs} --seed {args.seed}`  ",
+        f"Command: `python tools/next_touch_time.py --runs {args.runs} --seed {args.seed} "
+        f"--bytecode {args.bytecode}`  ",
         f"Machine: {platform.machine()}, Python {platform.python_version()}, "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; shared 2-core machine; "
         f"{seconds:.0f} s; load average {os.getloadavg()[0]:.2f} at the end.",
         "",
         f"Median of {args.runs} runs per row, each a new process, warm index cache; the four "
-        "bundled `objects` as the library. CPU = user + system time of the process.",
+        "bundled `objects` as the library. CPU = user + system time of the process. "
+        + (
+            "Bytecode written by an untimed first run (as on a user's machine)."
+            if args.bytecode == "warm"
+            else "No bytecode for meshrec (PYTHONDONTWRITEBYTECODE as set)."
+        ),
         "",
         "| run | CPU (s) | wall (s) | verdict |",
         "|---|---|---|---|",
@@ -105,10 +123,17 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, default=3, help="timed runs per touch")
     p.add_argument("--seed", type=int, default=3, help="simulated touches' and advice's seed")
+    p.add_argument(
+        "--bytecode",
+        choices=("warm", "none"),
+        default="warm",
+        help="warm: the children write and reuse bytecode (a temporary PYTHONPYCACHEPREFIX), "
+        "as on a user's machine; none: the environment as it is",
+    )
     p.add_argument("--out", type=Path, default=None, help="Markdown report")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    rows = run(args.runs, args.seed, lambda s: print(s, flush=True))
+    rows = run(args.runs, args.seed, lambda s: print(s, flush=True), args.bytecode)
     text = report(rows, args, time.perf_counter() - t0)
     print(text)
     if args.out is not None:
