@@ -681,6 +681,27 @@ def test_nearly_parallel_curves():
     assert pytest.approx(h, rel=0.01) == g.H
 
 
+def test_tangents_out_of_one_plane():
+    # three straight lines along x, y and z through the origin: no surface holds them all
+    # (before, a NaN frame: "SVD did not converge" and a RuntimeWarning)
+    t = np.linspace(-0.3, 0.3, 61)[:, None]
+    lines = [t * axis for axis in np.eye(3)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(
+            ValueError,
+            match=r"tangents at p do not lie in one plane: the tangent of curves\[\d\] is "
+            r"90 degrees out of the plane",
+        ):
+            estimate_local_geometry(lines)
+    # tilted by less than the limit (a third line leaving the plane at 60 degrees): accepted
+    tilt = np.radians(60.0)
+    lines[2] = t * np.array([0.0, np.cos(tilt), np.sin(tilt)])
+    lines[1] = t * np.array([np.cos(1.0), np.sin(1.0), 0.0])
+    g = estimate_local_geometry(lines)
+    assert np.isfinite(g.normal).all()
+
+
 def test_curves_as_tuple_or_3d_array():
     curves = clean_curves("ellipsoid")
     g = estimate_local_geometry(curves)

@@ -57,9 +57,14 @@ def test_no_warning_on_one_smooth_patch_or_without_noise(shapes):
 
 def test_fit_to_noise_without_noise():
     g = meshrec.estimate_local_geometry(
-        [np.column_stack([t, a * t, 0.1 * t**2]) for a, t in
-         [(0.0, np.linspace(-1, 1, 21)), (1.0, np.linspace(-1, 1, 21)),
-          (-2.0, np.linspace(-1, 1, 21))]]
+        [
+            np.column_stack([t, a * t, 0.1 * t**2])
+            for a, t in [
+                (0.0, np.linspace(-1, 1, 21)),
+                (1.0, np.linspace(-1, 1, 21)),
+                (-2.0, np.linspace(-1, 1, 21)),
+            ]
+        ]
     )
     assert dataclasses.replace(g, noise_rms=0.0, fit_rms=0.0).fit_to_noise == 1.0
     assert dataclasses.replace(g, noise_rms=0.0, fit_rms=1e-9).fit_to_noise == math.inf
@@ -70,8 +75,16 @@ def test_cli_prints_one_warning_line_and_still_answers(shapes, tmp_path, capsys)
     sim = _edge_touch(shapes)
     sim.write(tmp_path / "edge.csv", tmp_path / "truth.json")
     folder = str(shapes["box"].path.parent)
-    code = main(["recognize", str(tmp_path / "edge.csv"), "--models", folder,
-                 "--cache-dir", str(tmp_path / "cache")])
+    code = main(
+        [
+            "recognize",
+            str(tmp_path / "edge.csv"),
+            "--models",
+            folder,
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ]
+    )
     out, err = capsys.readouterr()
     assert code == 0
     # Named; the curves run over the edge, so the touch may still slide along it.
@@ -79,3 +92,41 @@ def test_cli_prints_one_warning_line_and_still_answers(shapes, tmp_path, capsys)
     lines = [ln for ln in err.splitlines() if "may cross an edge" in ln]
     assert len(lines) == 1
     assert lines[0].startswith("meshrec: warning: the curves fit no smooth surface patch")
+
+
+def test_nothing_registered_across_a_rim_blames_the_rim_not_the_library(tmp_path, capsys):
+    """A touch centred on a cone's base rim (the cone alone in its folder): the curvature
+    at the contact is not defined, the lookup finds nothing, and the answer says the rim,
+    not "not in the library", is the likely cause."""
+    cone = trimesh.creation.cone(radius=15.0, height=30.0, sections=128)
+    v, f = trimesh.remesh.subdivide_to_size(cone.vertices, cone.faces, max_edge=1.5)
+    folder = tmp_path / "models"
+    folder.mkdir()
+    trimesh.Trimesh(v, f).export(folder / "cone.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    sim = meshrec.simulate_touch(
+        folder / "cone.stl", rng=1, noise=0.01, contact=[15.0, 0.0, 0.0], length=8.0
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(sim.touch, lib)
+    assert rec.verdict == "unknown"
+    assert rec.best is None
+    assert "fit no smooth surface patch" in rec.reason
+    assert "not in the library" not in rec.reason
+    assert any("first pass fitted no model" in w for w in rec.warnings)
+    sim.touch.to_file(tmp_path / "touch.csv")
+    status = main(
+        [
+            "recognize",
+            str(tmp_path / "touch.csv"),
+            "--models",
+            str(folder),
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ]
+    )
+    assert status == 1
+    assert (
+        capsys.readouterr().out.splitlines()[-1].startswith("unknown: no model could be registered")
+    )

@@ -298,13 +298,17 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
         out.write(f"pose: {rec.pose_freedom.description}{known}\n")
     if rec.verdict == "recognised":
         what = rec.plausible[0]
+        if rec.pose_freedom is not None and not rec.pose_freedom.fixed:
+            what += f", its pose {rec.pose_freedom.description}"
     elif rec.verdict == "ambiguous" and len(rec.plausible) == 1 and rec.pose_freedom:
         what = f"{rec.plausible[0]}, but its pose is not fixed ({rec.pose_freedom.description})"
     elif rec.verdict == "ambiguous":
         what = " or ".join(rec.plausible)
     else:
-        best = rec.best.model if rec.best is not None else "none"
-        what = f"not in the library (best fit: {best})"
+        if rec.best is None:
+            what = "no model could be registered"
+        else:
+            what = f"not in the library (best fit: {rec.best.model})"
     out.write(f"{rec.verdict}: {what}  ({rec.seconds:.2f} s)\n")
 
 

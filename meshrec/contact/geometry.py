@@ -666,7 +666,8 @@ def estimate_local_geometry(
         ``degree`` is not an integer >= 2; if two curves' tangents at p are within
         ``defaults.MIN_TANGENT_ANGLE_DEG`` of each other (modulo 180 degrees) or the Euler
         system's condition number exceeds ``defaults.MAX_EULER_CONDITION`` (the curves are
-        nearly parallel at p).
+        nearly parallel at p); if a curve's tangent at p is more than
+        ``defaults.MAX_TANGENT_TILT_DEG`` out of the plane that fits the tangents best.
     """
     cs = _check_curves(curves)
     degree = _check_degree(degree)
@@ -698,6 +699,18 @@ def estimate_local_geometry(
     # normal: least-squares direction perpendicular to all tangents
     _, evecs = np.linalg.eigh(tangents.T @ tangents)
     n = _canonical_sign(evecs[:, 0])
+    # The tangents must lie about one plane: one nearly along the normal of the others
+    # (three straight lines along x, y and z) leaves no tangent plane to write Euler's
+    # formula in.
+    tilt = np.degrees(np.arcsin(np.minimum(np.abs(tangents @ n), 1.0)))
+    k = int(np.argmax(tilt))
+    if not tilt[k] <= defaults.MAX_TANGENT_TILT_DEG:
+        raise ValueError(
+            f"the curves' tangents at p do not lie in one plane: the tangent of curves[{k}] "
+            f"is {tilt[k]:.3g} degrees out of the plane that fits them best (more than "
+            f"defaults.MAX_TANGENT_TILT_DEG = {defaults.MAX_TANGENT_TILT_DEG}): no smooth "
+            "surface holds them; the curves may cross a corner or not lie on one surface"
+        )
     e1 = tangents[0] - (tangents[0] @ n) * n
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)

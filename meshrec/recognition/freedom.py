@@ -13,6 +13,12 @@ it (so slides and turns are measured alike: a turn of one radian moves the point
 ``defaults.POSE_FREE_RATIO`` times the largest is a free motion. The free subspace is then
 split into turns (the rank of its rotational part) and slides (the motions in it with no
 rotation); a slide's direction and a turn's axis are reported in the model frame.
+
+A pose can also be one of a few distinct ones that fit equally well: touches near a box's
+corner fit it as well after a third of a turn about the corner's diagonal, where no motion
+is free. :func:`with_alternatives` counts the poses among the model's weighted hypotheses
+that are not symmetries of the model of the reported one and that the data cannot rule
+out.
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.io.checks import check_points
 
-__all__ = ["PoseFreedom", "pose_freedom", "pose_sigma", "with_symmetries"]
+__all__ = ["PoseFreedom", "pose_freedom", "pose_sigma", "with_alternatives", "with_symmetries"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +63,12 @@ class PoseFreedom:
         How precisely the data fix the pose: the largest one-sigma displacement of a data
         point along the least-constrained motion (:func:`pose_sigma`), model units; NaN
         when not computed, ``inf`` when a motion is free.
+    alternatives : int
+        Distinct poses besides the reported one, none a symmetry of the model of another,
+        that the data cannot rule out (:func:`with_alternatives`); 0 when not checked.
+    pose_weight : float
+        The weight of the reported pose and the poses it equals up to a symmetry of the
+        model, among the model's pose hypotheses; NaN when not checked.
     """
 
     free: int
@@ -70,11 +82,19 @@ class PoseFreedom:
     slide_symmetric: tuple[bool, ...] = ()
     turn_symmetric: tuple[bool, ...] = ()
     sigma: float = float("nan")
+    alternatives: int = 0
+    pose_weight: float = float("nan")
 
     @property
     def unresolved(self) -> int:
         """Free motions that are not symmetries of the model: another touch can fix them."""
         return self.free - sum(self.slide_symmetric) - sum(self.turn_symmetric)
+
+    @property
+    def fixed(self) -> bool:
+        """Whether the data fix the pose: no free motion that is not a symmetry of the
+        model, and no distinct pose that fits about as well (``alternatives``)."""
+        return self.unresolved == 0 and self.alternatives == 0
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -83,9 +103,20 @@ class PoseFreedom:
 
     @property
     def description(self) -> str:
-        """A short phrase: "fixed", or e.g. "free: 2 slides and 1 turn"."""
+        """A short phrase: "fixed", e.g. "free: 2 slides and 1 turn", or "one of 2 poses
+        that fit about equally well (this one's weight 0.50)"."""
+        if self.alternatives:
+            text = (
+                f"one of {self.alternatives + 1} poses that fit about equally well (this "
+                f"one's weight {self.pose_weight:.2f})"
+            )
+            return text if self.free == 0 else f"{text}; {self._free_phrase()}"
         if self.free == 0:
             return "fixed"
+        return self._free_phrase()
+
+    def _free_phrase(self) -> str:
+        """E.g. "free: 2 slides and 1 turn (1 of them a symmetry of the model)"."""
         words = []
         if self.slides:
             words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
@@ -100,7 +131,8 @@ class PoseFreedom:
     def to_dict(self) -> dict:
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
         ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``, the
-        symmetry flags, ``unresolved`` and ``sigma`` (None when NaN or infinite)."""
+        symmetry flags, ``unresolved``, ``sigma`` (None when NaN or infinite),
+        ``alternatives``, ``pose_weight`` (None when NaN) and ``fixed``."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -115,6 +147,9 @@ class PoseFreedom:
             "turn_symmetric": list(self.turn_symmetric),
             "unresolved": int(self.unresolved),
             "sigma": float(self.sigma) if np.isfinite(self.sigma) else None,
+            "alternatives": int(self.alternatives),
+            "pose_weight": float(self.pose_weight) if np.isfinite(self.pose_weight) else None,
+            "fixed": bool(self.fixed),
         }
 
     def __repr__(self) -> str:
@@ -237,8 +272,10 @@ def pose_sigma(
         raise ValueError(f"noise must be a positive finite number, got {noise!r}")
     if not (isinstance(ess_fraction, (int, float)) and 0.0 < ess_fraction <= 1.0):
         raise ValueError(f"ess_fraction must be a number in (0, 1], got {ess_fraction!r}")
-    if not isinstance(leave_out, (int, np.integer)) or isinstance(leave_out, bool) or not (
-        0 <= leave_out <= 5
+    if (
+        not isinstance(leave_out, (int, np.integer))
+        or isinstance(leave_out, bool)
+        or not (0 <= leave_out <= 5)
     ):
         raise ValueError(f"leave_out must be an integer in 0 to 5, got {leave_out!r}")
     _, s, vt = np.linalg.svd(J, full_matrices=False)
@@ -325,6 +362,99 @@ def with_symmetries(
         R = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
         turns.append(stays((v - p) @ R.T + p))
     return replace(freedom, slide_symmetric=slides, turn_symmetric=tuple(turns))
+
+
+def with_alternatives(
+    freedom: PoseFreedom,
+    poses: np.ndarray,
+    weights: np.ndarray,
+    vertices: np.ndarray,
+    distance,
+    tolerance: float,
+    coverage: float = defaults.VERDICT_COVERAGE,
+) -> PoseFreedom:
+    """``freedom`` with the distinct poses that the data cannot rule out counted.
+
+    Two poses ``T_a`` and ``T_b`` (both ``T_model_touch``) put the object at the same place
+    in the touch frame when ``T_a T_b^-1`` is a symmetry of the model: the model's
+    vertices, moved by it, all stay within ``tolerance`` of its surface (the test of
+    :func:`with_symmetries`). The poses are grouped by that test, in the order given, each
+    into the first group whose first pose it equals; the reported pose (the first) leads
+    the first group. ``pose_weight`` is that group's weight, and ``alternatives`` the
+    number of other groups needed, heaviest first, for the weights to reach ``coverage``:
+    the poses of the model the data cannot tell apart (as the plausible set does for
+    models, :func:`meshrec.recognition.scoring.plausible_set`).
+
+    When the first pose's own weight reaches ``coverage`` nothing is tested: no
+    alternative, and ``pose_weight`` is that weight. Poses of weight below
+    ``defaults.POSE_ALTERNATIVE_MIN_WEIGHT`` are not tested either (together they cannot
+    tip the coverage by more than their sum).
+
+    Parameters
+    ----------
+    freedom : PoseFreedom
+    poses : (k, 4, 4) float
+        The model's distinct pose hypotheses (``T_model_touch``), the reported one first;
+        k >= 1.
+    weights : (k,) float
+        Their weights (summing to 1; :func:`meshrec.recognition.scoring.pose_weights`).
+    vertices : (V, 3) float
+        The model's vertices (a subsample will do).
+    distance : callable
+        ``distance(points (n, 3)) -> (n,)`` unsigned distances to the model's surface.
+    tolerance : float
+        The largest distance a symmetry may leave, model units.
+    coverage : float
+        In (0, 1].
+
+    Returns
+    -------
+    PoseFreedom
+
+    Raises
+    ------
+    ValueError
+        If ``poses`` is not (k, 4, 4) finite with k >= 1, ``weights`` not (k,) finite and
+        non-negative, ``vertices`` not (V, 3) finite with V >= 1, ``tolerance`` not
+        positive or ``coverage`` not in (0, 1].
+    """
+    T = np.asarray(poses, dtype=np.float64)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0 or not np.isfinite(T).all():
+        raise ValueError(f"poses must be (k, 4, 4) finite with k >= 1, got shape {T.shape}")
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (len(T),) or not np.isfinite(w).all() or (w < 0).any():
+        raise ValueError(
+            f"weights must be ({len(T)},) finite and non-negative, got {np.asarray(weights)!r}"
+        )
+    v = check_points(vertices, "vertices", min_rows=1)
+    if not (isinstance(tolerance, (int, float)) and float(tolerance) > 0.0):
+        raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+    if not (isinstance(coverage, (int, float)) and 0.0 < float(coverage) <= 1.0):
+        raise ValueError(f"coverage must be a number in (0, 1], got {coverage!r}")
+    if w[0] >= coverage:
+        return replace(freedom, alternatives=0, pose_weight=float(w[0]))
+    leaders: list[int] = [0]
+    group_weight = [float(w[0])]
+    for i in range(1, len(T)):
+        if w[i] < defaults.POSE_ALTERNATIVE_MIN_WEIGHT:
+            continue
+        for g, j in enumerate(leaders):
+            # T_j T_i^-1 maps the model onto itself when the two poses agree.
+            D = T[j] @ np.linalg.inv(T[i])
+            if float(np.max(np.asarray(distance(v @ D[:3, :3].T + D[:3, 3])))) <= tolerance:
+                group_weight[g] += float(w[i])
+                break
+        else:
+            leaders.append(i)
+            group_weight.append(float(w[i]))
+    total = group_weight[0]
+    alternatives = 0
+    for gw in sorted(group_weight[1:], reverse=True):
+        if total >= coverage:
+            break
+        total += gw
+        alternatives += 1
+    return replace(freedom, alternatives=alternatives, pose_weight=group_weight[0])
 
 
 def _orthonormal(vectors: np.ndarray) -> np.ndarray:

@@ -21,7 +21,13 @@ from meshrec.recognition.bestfirst import fit_best_first
 from meshrec.recognition.cascade import cascade_register
 from meshrec.recognition.edges import warn_sharp_edges
 from meshrec.recognition.flatness import flat_prior
-from meshrec.recognition.freedom import PoseFreedom, pose_freedom, pose_sigma, with_symmetries
+from meshrec.recognition.freedom import (
+    PoseFreedom,
+    pose_freedom,
+    pose_sigma,
+    with_alternatives,
+    with_symmetries,
+)
 from meshrec.recognition.joint import (
     check_touch_sizes,
     explore_weak_motions,
@@ -342,7 +348,12 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     A touch on a flat face fits its model equally well after any slide on the face or turn
     about its normal: the reported pose is then one of a continuum, not a measurement. The
     model may still be the only one that fits; the verdict is then ``ambiguous`` with that
-    model alone in ``plausible``, and the reason says so.
+    model alone in ``plausible``, and the reason says so. When instead the model's pose
+    hypotheses hold distinct poses, not symmetries of the model of each other, that the
+    data cannot rule out (touches near a box's corner, which fit it as well after a third
+    of a turn about the corner's diagonal: ``with_alternatives``), each pose has its weight
+    and the verdict stays the model's; the reason says the pose is one of them, and
+    ``pose_freedom.fixed`` is False.
     """
     best = rec.best
     if best is None or best.T_model_touch is None:
@@ -369,9 +380,36 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
         # how precisely the data fix the pose, the symmetries' free motions left out
         sigma = pose_sigma(on_surface, normals, float(rec.noise), leave_out=freedom.free)
     freedom = dataclasses.replace(freedom, sigma=sigma)
+    score = next((s for s in rec.scores if s.model == best.model), None)
+    if score is not None and score.poses and freedom.unresolved == 0:
+        # Distinct poses (a free motion already leaves the pose open). Two poses that move
+        # the object by less than a few times the pose's own precision are one.
+        vertices, distance, tolerance = _symmetry_test(model)
+        within = defaults.POSE_ALTERNATIVE_SIGMAS * sigma if np.isfinite(sigma) else 0.0
+        freedom = with_alternatives(
+            freedom,
+            np.array([p.T_model_touch for p in score.poses]),
+            np.array([p.weight for p in score.poses]),
+            vertices,
+            distance,
+            max(tolerance(), within),
+        )
     rec = dataclasses.replace(rec, pose_freedom=freedom)
-    if freedom.unresolved == 0:
+    if freedom.fixed:
         return rec
+    if freedom.unresolved == 0:
+        # No free motion, but distinct poses that fit about equally well: each has its
+        # weight (a distribution over poses, as the models' probabilities), so the verdict
+        # stays the model's; the reason and pose_freedom.fixed say the pose is open.
+        return dataclasses.replace(
+            rec,
+            reason=(
+                f"{rec.reason}; but {best.model}'s pose is one of "
+                f"{freedom.alternatives + 1} that fit about equally well and are not "
+                f"symmetries of it (the one reported has weight {freedom.pose_weight:.2f}): "
+                "touch again elsewhere on the object to fix it"
+            ),
+        )
     what = _freedom_phrase(freedom)
     if rec.verdict == "recognised":
         return dataclasses.replace(
@@ -392,15 +430,25 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
 
 def _with_model_symmetries(freedom: PoseFreedom, model) -> PoseFreedom:
     """Which free motions are symmetries of the whole model (see ``with_symmetries``)."""
+    vertices, distance, tolerance = _symmetry_test(model)
+    return with_symmetries(freedom, vertices, distance, tolerance())
+
+
+def _symmetry_test(model):
+    """The vertices (at most ``defaults.POSE_SYMMETRY_VERTICES``), the distance to the
+    surface, and a function giving the tolerance (its chord error is only computed when
+    asked), with which a motion is tested for a symmetry of the model."""
     V = model.mesh.vertices
     step = max(1, len(V) // defaults.POSE_SYMMETRY_VERTICES)
     diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
-    tolerance = max(
-        defaults.POSE_SYMMETRY_TOLERANCE * diagonal, 2.0 * float(model.resolution.chord_error)
-    )
-    return with_symmetries(
-        freedom, V[::step], lambda p: model.surface.closest_points(p)[0], tolerance
-    )
+
+    def tolerance() -> float:
+        return max(
+            defaults.POSE_SYMMETRY_TOLERANCE * diagonal,
+            2.0 * float(model.resolution.chord_error),
+        )
+
+    return V[::step], lambda p: model.surface.closest_points(p)[0], tolerance
 
 
 def _pose_normals(
@@ -861,9 +909,7 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(
-    rec: Recognition, fits: dict, models: list, method: str, run=None
-) -> Recognition:
+def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=None) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
@@ -932,8 +978,8 @@ def _with_verdict(
             )
         t_wide = time.perf_counter() - t1
         cautions.append(
-            "the best fit was worse than the noise allows: the curvature lookup was widened "
-            f"{defaults.LOOKUP_WIDEN_SCALE:g} times and {looked}"
+            "the first pass fitted no model to within the noise (or registered none): the "
+            f"curvature lookup was widened {defaults.LOOKUP_WIDEN_SCALE:g} times and {looked}"
         )
     with timed("scoring"):
         t1 = time.perf_counter()
@@ -945,11 +991,13 @@ def _with_verdict(
             v = _with_data_plausible(v, rec.scores, n, noise)
             cautions.append(_flat_caution(rec.scores, prior))
         reason = v.reason
+        rough = False
         for k, g in enumerate(rec.geometries):
             if (
                 g.fit_to_noise > defaults.ROUGH_FIT_RATIO
                 and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
             ):
+                rough = True
                 which = (
                     f"touch {k + 1}'s curve fits" if len(rec.geometries) > 1 else "the curve fits"
                 )
@@ -957,6 +1005,16 @@ def _with_verdict(
                     f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
                     "the curves may cross an edge, and the probabilities are less reliable"
                 )
+        if rough and v.verdict == "unknown" and rec.best is None:
+            # Nothing registered from a touch whose curves fit no smooth patch: the
+            # curvature at p, which the lookup matches, is not defined there (a rim, an
+            # edge); that, not the library, is the likely cause.
+            reason = (
+                "no model could be registered: the curves fit no smooth surface patch, so the "
+                "curvature at their common point, which the lookup matches, is not defined "
+                "(they may cross an edge or a rim); the object may still be in the library: "
+                "touch again away from edges"
+            )
         best_reg = rec.best
         if best_reg is None:
             per_touch = (None,) * len(rec.touches)
