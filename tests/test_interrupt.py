@@ -150,3 +150,67 @@ def test_lazy_public_names():
         assert getattr(meshrec, name) is not None
     with pytest.raises(AttributeError, match="module 'meshrec' has no attribute 'nothing'"):
         _ = meshrec.nothing
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux /proc)."""
+    try:
+        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
+    except (FileNotFoundError, ProcessLookupError, PermissionError):
+        return []
+    return [int(c) for c in text.split()]
+
+
+@pytest.mark.slow
+def test_ctrl_c_to_the_process_group_with_worker_processes(tmp_path):
+    """A terminal's Ctrl-C reaches the command and its worker processes (one process
+    group): one line, status 130, no traceback from the workers (which used to print a
+    KeyboardInterrupt each while they imported), and no worker left behind."""
+    import trimesh
+
+    import meshrec
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for k in range(8):  # eight models: --workers starts processes from eight up
+        blob = trimesh.creation.icosphere(subdivisions=3)
+        blob.apply_scale([1.0, 0.8 + 0.05 * k, 0.6])
+        blob.export(folder / f"blob_{k}.stl")
+    cache = tmp_path / "cache"
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=cache)
+    meshrec.simulate_touch(lib["blob_3"], rng=0).touch.to_file(tmp_path / "touch.csv")
+    cmd = [str(SCRIPT), "recognize", str(tmp_path / "touch.csv"), "--models", str(folder)]
+    cmd += ["--cache-dir", str(cache), "--workers", "2"]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 120
+    while len(_children(proc.pid)) < 2 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    workers = _children(proc.pid)
+    time.sleep(0.3)  # the workers are importing numpy and loading the library
+    running = proc.poll() is None
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert running, err
+    assert len(workers) >= 2, err
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "Traceback" not in err, err
+    assert err.strip().splitlines()[-1] == "meshrec: interrupted"
+    time.sleep(1.0)
+    assert [w for w in workers if _alive(w)] == []
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    state = next((ln for ln in status.splitlines() if ln.startswith("State:")), "")
+    return "(zombie)" not in state

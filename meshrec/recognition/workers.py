@@ -31,8 +31,10 @@ a short-lived one when given ``workers=`` or ``scheduler=``.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import signal
 import threading
 import warnings
 import zlib
@@ -116,6 +118,22 @@ def _load(spec: _Spec) -> dict[str, tuple[ModelIndex, tuple]]:
 def _warm(spec: _Spec) -> int:
     """Load the library in this process (a pool's initializer, a Dask ``run``)."""
     return len(_load(spec))
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored while the pool's processes are started, so that they inherit it
+    (an ignored signal stays ignored across exec, and Python then installs no
+    KeyboardInterrupt handler); restored at once after. Only from the main thread (the
+    only one that may set handlers); elsewhere nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _stage_chunk(spec: _Spec, items, touch, geometry, method, lookup_scale, trace):
@@ -244,9 +262,17 @@ class ModelWorkers:
             self.mode = "processes"
             self.workers = workers
             # Start every process now (each loads the library once): the first
-            # recognition then costs what the others do.
-            for f in [self._pool.submit(_warm, self._spec) for _ in range(workers)]:
-                f.result()
+            # recognition then costs what the others do. They start ignoring Ctrl-C (a
+            # terminal sends it to the whole process group): the caller handles it and
+            # stops them, with no traceback from each of them.
+            try:
+                with _sigint_ignored():
+                    started = [self._pool.submit(_warm, self._spec) for _ in range(workers)]
+                for f in started:
+                    f.result()
+            except BaseException:  # Ctrl-C while they start: none is left behind
+                self._stop_now()
+                raise
         else:
             self.mode = "serial"
             self.workers = 1
@@ -266,7 +292,11 @@ class ModelWorkers:
     def __enter__(self) -> ModelWorkers:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None and not issubclass(exc_type, Exception):
+            # Ctrl-C (or an exit): the processes ignore SIGINT, so stop them now rather
+            # than wait for the chunks they are running.
+            self._stop_now()
         self.close()
 
     def close(self) -> None:
@@ -277,6 +307,20 @@ class ModelWorkers:
         if self._client is not None:
             self._client.close()
             self._client = None
+
+    def _stop_now(self) -> None:
+        """Terminate the local processes at once (their work is abandoned)."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+        if terminate is not None:
+            terminate()
+            return
+        # Before 3.14 the executor keeps its processes in ``_processes`` (pid -> Process).
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
 
     def register_each(
         self,
