@@ -5,6 +5,7 @@ import stat
 import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -166,6 +167,30 @@ def test_unwritable_directory_warns(tmp_path):
     with pytest.warns(CacheWarning, match="continuing without caching"):
         assert c.save(KEY, _arrays()) is None
     assert c.load(KEY, ["x"]) is None
+
+
+def test_a_file_as_the_cache_folder_warns_once_per_folder_not_per_model(tmp_path):
+    # a library of three models indexed with a file given as the cache folder: one
+    # warning for the cache folder and one for the packs' folder, not one per model
+    import trimesh
+
+    import meshrec
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for k in range(3):
+        trimesh.creation.icosphere(subdivisions=2, radius=1.0 + k).export(folder / f"s{k}.stl")
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=blocker)
+    assert len(lib) == 3
+    texts = sorted({str(w.message) for w in caught if issubclass(w.category, CacheWarning)})
+    assert len(texts) == 2, texts
+    assert texts[0].startswith(f"cannot create the cache folder {str(blocker)!r}")
+    assert "packs" in texts[1]
+    assert blocker.read_text() == "x"
 
 
 @pytest.mark.skipif(

@@ -444,6 +444,14 @@ class ArrayCache:
 
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            # The same text for every entry: shown once, not once per model.
+            self._warn(
+                f"cannot create the cache folder {str(self.directory)!r} "
+                f"({type(exc).__name__}: {exc}); continuing without caching"
+            )
+            return None
+        try:
             self._sweep()
             # the temporary name is the one _sweep recognises (_TEMP_RE): host and pid
             write_atomic(path, write, prefix=_temp_prefix(path.stem), suffix=".tmp")

@@ -51,11 +51,25 @@ _TOC = "toc.json"
 _PER_VERTEX = ("vertices", "vertex_normals")
 _PER_FACE = ("faces", "edge_bulge", "face_patch")
 _PER_SITE = (
-    "points", "normals", "normals2", "k1", "k2", "dir1", "dir2", "valid",
-    "K_range", "H_range", "crease",
+    "points",
+    "normals",
+    "normals2",
+    "k1",
+    "k2",
+    "dir1",
+    "dir2",
+    "valid",
+    "K_range",
+    "H_range",
+    "crease",
 )
 _SCALARS = (
-    "closed", "scale", "avg_edge", "spacing", "curvature_radius", "range_radius",
+    "closed",
+    "scale",
+    "avg_edge",
+    "spacing",
+    "curvature_radius",
+    "range_radius",
     "build_seconds",
 )
 _CHUNK = 1 << 24
@@ -225,6 +239,15 @@ def write_pack(
     tmp = final.parent / f".{final.name}.{os.getpid()}.tmp"
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        warnings.warn(
+            f"cannot create the cache folder {str(final.parent)!r} "
+            f"({type(exc).__name__}: {exc}); the library loads model by model",
+            CacheWarning,
+            stacklevel=2,
+        )
+        return None
+    try:
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
         for name in _PER_VERTEX + _PER_FACE + _PER_SITE:
