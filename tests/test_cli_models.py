@@ -135,6 +135,13 @@ def test_touch_in_metres_against_the_objects_in_millimetres(env, metres):
         "likely a unit mismatch (mm vs m?); touch data and models must be in the same units "
         "(give the touch's unit with --units, and the models' with --model-units",
     )
+    # a wrong --units (cm: the touch, in metres, then 100 times too small) is named as the
+    # unit to check, not asked for
+    _one_error_line(
+        _run(["recognize", "touch_m.csv", "--models", "objects", "--units", "cm"], env, folder),
+        "touch data and models must be in the same units "
+        "(the touch was read in cm as --units says: check that unit",
+    )
     # with --units m it is converted to millimetres and recognised
     proc = _run(
         ["recognize", "touch_m.csv", "--models", "objects", "--units", "m", "--json"], env, folder

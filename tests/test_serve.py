@@ -173,8 +173,10 @@ def test_several_touches_in_one_frame_and_units(served):
     )
     assert len(doc["touches"]) == 2
     assert [t["file"] for t in doc["touches"]] == ["<request touches[0]>", "<request touches[1]>"]
-    # "units" with unitless models: nothing to convert to, said in the warnings (as --units)
+    # "units" with unitless models: nothing to convert to, said in the warnings (naming
+    # the request's key, not the command line's flag)
     r = _post(served.url, "/recognize", {**_body(sims[0].touch), "units": "mm"})
+    assert any(w.startswith('"units": mm is not used') for w in r.json()["warnings"])
     assert r.status_code == 200, r.text
     assert any("units" in w for w in r.json()["warnings"])
 

@@ -535,7 +535,7 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as exc:
         from meshrec.app.inputs import error_message
 
-        sys.stderr.write(f"meshrec: error: {error_message(exc)}\n")
+        sys.stderr.write(f"meshrec: error: {error_message(exc, getattr(args, 'units', None))}\n")
         return 2
     except BrokenPipeError:  # the reader of stdout went away (``| head -1``): stop quietly
         import os

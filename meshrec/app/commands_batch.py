@@ -39,7 +39,7 @@ def _one(
             rec = recognize(touch, library, method=method, geometry=geometry, workers=workers)
             doc = {"file": shown, **to_json(rec)}
         except ValueError as exc:
-            doc = {"file": shown, "error": error_message(exc)}
+            doc = {"file": shown, "error": error_message(exc, units)}
     if caught:
         doc["warnings"] = [str(w.message) for w in caught]
     return doc
@@ -88,9 +88,7 @@ def run_batch(
     """
     failed = 0
     for name in names:
-        doc = _one(
-            name, library, units, models_units, method, to_json, probe_radius, workers
-        )
+        doc = _one(name, library, units, models_units, method, to_json, probe_radius, workers)
         failed += "error" in doc
         out.write(json.dumps(doc) + "\n")
         out.flush()

@@ -46,9 +46,7 @@ def add_serve_parser(sub, models_arg) -> None:
         "(GET /health, POST /recognize, POST /next-touch)",
     )
     models_arg(s)
-    s.add_argument(
-        "--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)"
-    )
+    s.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
     s.add_argument(
         "--port",
         type=int,
@@ -112,8 +110,7 @@ def parse_body(raw: bytes, advice: bool) -> dict:
         raise BadRequest(f"request body: not valid JSON ({one_line(str(exc), 120)})") from None
     if not isinstance(body, dict):
         raise BadRequest(
-            'request body: expected a JSON object, one touch {"curves": ...} or '
-            '{"touches": [...]}'
+            'request body: expected a JSON object, one touch {"curves": ...} or {"touches": [...]}'
         )
     options = ("units", "approach", "seed") if advice else ("units",)
     allowed = {"touches", *options} if "touches" in body else {*_TOUCH_KEYS, *options}
@@ -226,7 +223,7 @@ class Service:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                units = inputs.touch_units(job["units"], self.models_units)
+                units = inputs.touch_units(job["units"], self.models_units, '"units":')
                 touches, geometries = [], []
                 for i, touch in enumerate(job["touches"]):
                     name = f"touches[{i}]" if several else "touch"
@@ -246,9 +243,7 @@ class Service:
                     workers=self.workers,
                 )
                 if advice:
-                    found = next_touch(
-                        rec, self.library, approach=job["approach"], rng=job["seed"]
-                    )
+                    found = next_touch(rec, self.library, approach=job["approach"], rng=job["seed"])
             except ValueError as exc:
                 text = one_line(str(exc), None)
                 if UNIT_MISMATCH in text:

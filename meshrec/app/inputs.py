@@ -116,8 +116,13 @@ def model_units(folder: Path, given: str | None) -> str | None:
     return given if given is not None else read_units_note(folder)
 
 
-def touch_units(units: str | None, models_units: str | None) -> str | None:
+def touch_units(
+    units: str | None, models_units: str | None, given_as: str = "--units"
+) -> str | None:
     """The touch's unit to convert from: ``units`` when the models' units are known too.
+
+    ``given_as`` names where ``units`` came from in the warning (``--units`` on the
+    command line; the service passes its request's key).
 
     Warns
     -----
@@ -126,10 +131,14 @@ def touch_units(units: str | None, models_units: str | None) -> str | None:
         the size check applies (:func:`meshrec.recognition.units.check_units`).
     """
     if units is not None and models_units is None:
+        models = (
+            "--model-units, or a meshrec.json note in the model folder"
+            if given_as == "--units"
+            else "a meshrec.json note in the model folder, or serve's --model-units"
+        )
         warnings.warn(
-            f"--units {units} is not used: the models' units are unknown (give "
-            "--model-units, or a meshrec.json note in the model folder); only the size "
-            "check applies",
+            f"{given_as} {units} is not used: the models' units are unknown (give "
+            f"{models}); only the size check applies",
             UserWarning,
             stacklevel=2,
         )
@@ -236,12 +245,18 @@ def library(args, folder: Path, progress=None):
     )
 
 
-def error_message(exc: ValueError) -> str:
-    """The one-line message of a bad-input error, with what to do about a unit mismatch."""
+def error_message(exc: ValueError, units: str | None = None) -> str:
+    """The one-line message of a bad-input error, with what to do about a unit mismatch
+    (``units``: the touch's ``--units``, when given)."""
     from meshrec.io.checks import one_line
 
     text = one_line(str(exc), None)
     if UNIT_MISMATCH in text:
+        if units is not None:
+            return (
+                f"{text} (the touch was read in {units} as --units says: check that unit, "
+                "and the models' with --model-units or a meshrec.json note in their folder)"
+            )
         return (
             f"{text} (give the touch's unit with --units, and the models' with --model-units "
             "or a meshrec.json note in their folder)"
