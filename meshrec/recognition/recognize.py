@@ -385,14 +385,18 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
         # Distinct poses (a free motion already leaves the pose open). Two poses that move
         # the object by less than a few times the pose's own precision are one.
         vertices, distance, tolerance = _symmetry_test(model)
+        weights = np.array([p.weight for p in score.poses])
         within = defaults.POSE_ALTERNATIVE_SIGMAS * sigma if np.isfinite(sigma) else 0.0
+        # (the tolerance, whose chord error costs a pass over the mesh, only when a pose
+        # is compared: not when the reported one alone reaches the coverage)
+        needed = weights[0] < defaults.VERDICT_COVERAGE
         freedom = with_alternatives(
             freedom,
             np.array([p.T_model_touch for p in score.poses]),
-            np.array([p.weight for p in score.poses]),
+            weights,
             vertices,
             distance,
-            max(tolerance(), within),
+            max(tolerance(), within) if needed else float("inf"),
         )
     rec = dataclasses.replace(rec, pose_freedom=freedom)
     if freedom.fixed:
