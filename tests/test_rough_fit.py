@@ -130,3 +130,26 @@ def test_nothing_registered_across_a_rim_blames_the_rim_not_the_library(tmp_path
     assert (
         capsys.readouterr().out.splitlines()[-1].startswith("unknown: no model could be registered")
     )
+
+
+def test_a_misfit_across_an_edge_is_not_only_blamed_on_the_library(shapes, tmp_path):
+    """The box's edge touch against a library without the box (an ellipsoid): unknown, and
+    the reason adds that the curves cross an edge, where the search may miss the pose;
+    a smooth touch of a model not in the library keeps the plain reason."""
+    folder = tmp_path / "models"
+    folder.mkdir()
+    egg = trimesh.creation.icosphere(subdivisions=4)
+    egg.apply_scale([1.5, 1.0, 0.8])
+    egg.export(folder / "egg.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rough = meshrec.recognize(_edge_touch(shapes).touch, lib)
+        smooth = meshrec.recognize(
+            meshrec.simulate_touch(shapes["can"], rng=2, contact=[1.0, 0.0, 0.0]).touch, lib
+        )
+    assert rough.verdict == "unknown"
+    assert "probably not in the library, or its pose was missed" in rough.reason
+    assert "cross an edge or a rim" in rough.reason
+    assert smooth.verdict == "unknown"
+    assert smooth.reason.endswith("the object is probably not in the library")

@@ -1009,6 +1009,14 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
                     f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
                     "the curves may cross an edge, and the probabilities are less reliable"
                 )
+        if rough and v.verdict == "unknown" and rec.best is not None:
+            # A misfit from curves that fit no smooth patch: the search, started from the
+            # curvature at p, may have missed the right pose across the edge.
+            reason = (
+                f"{reason}, or its pose was missed: the curves fit no smooth surface patch "
+                "(they may cross an edge or a rim), where the search is less reliable; touch "
+                "again away from edges"
+            )
         if rough and v.verdict == "unknown" and rec.best is None:
             # Nothing registered from a touch whose curves fit no smooth patch: the
             # curvature at p, which the lookup matches, is not defined there (a rim, an
