@@ -93,15 +93,32 @@ def test_local_processes_give_the_serial_result(library, serial_plain, parallel_
         assert workers.workers == 2
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            parallel = [
-                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in touches
-            ]
+            parallel = [meshrec.recognize(t, lib, workers=workers, cascade=False) for t in touches]
     assert serial[2].widened_seconds > 0
     for s, p in zip(serial, parallel, strict=True):
         _same(s, p)
     assert serial[0].best.model == "b"
     with pytest.raises(RuntimeError, match="closed"):
         workers.register_each(one, list(lib), serial[0].geometry, "lm")
+
+
+@pytest.mark.slow
+def test_workers_given_as_a_number_load_from_the_librarys_cache(
+    library, serial_plain, parallel_small, monkeypatch, tmp_path
+):
+    # recognize(..., workers=2) makes its own processes: they load the library from the
+    # cache it was loaded from (lib.cache_dir), not from the default cache (which they
+    # used to fill with a new index of every model)
+    lib, cache = library
+    assert lib.cache_dir == cache
+    default = tmp_path / "default_cache"
+    monkeypatch.setenv("MESHREC_CACHE_DIR", str(default))
+    touches, serial = serial_plain
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        parallel = meshrec.recognize(touches[0], lib, workers=2, cascade=False)
+    _same(serial[0], parallel)
+    assert not default.exists() or list(default.iterdir()) == []
 
 
 @pytest.mark.slow
@@ -423,9 +440,7 @@ def _cascade_exercised(recs):
 
 
 @pytest.mark.slow
-def test_local_processes_give_the_serial_cascades_result(
-    library, cascade_cases, screened_small
-):
+def test_local_processes_give_the_serial_cascades_result(library, cascade_cases, screened_small):
     lib, cache = library
     touches, serial = cascade_cases
     with warnings.catch_warnings():

@@ -41,11 +41,16 @@ class ModelLibrary:
     skipped : tuple of (Path, str)
         Files that could not be used (not a mesh, unreadable, a repeated name), with the
         reason.
+    cache_dir : Path or None
+        The index cache the models were read from or written to (the default one when
+        none was given): worker processes (``recognize(..., workers=N)``) load the library
+        from it. None for a library made by hand.
     """
 
     folder: Path | None
     models: tuple[ModelIndex, ...]
     skipped: tuple[tuple[Path, str], ...] = ()
+    cache_dir: Path | None = None
 
     @classmethod
     def from_folder(
@@ -178,7 +183,7 @@ class ModelLibrary:
             if progress is not None:  # the pack loads at once; report its models in turn
                 for i, path in enumerate(files):
                     progress(i, len(files), path.stem)
-            return cls._checked(folder, packed[0], list(skipped) + list(packed[1]), what)
+            return cls._checked(folder, packed[0], list(skipped) + list(packed[1]), what, cache_dir)
         found = list(skipped)
         models: dict[str, ModelIndex] = {}
         skipped: list[tuple[Path, str]] = []
@@ -213,10 +218,10 @@ class ModelLibrary:
             pack.write_pack(
                 files, digests, params or IndexParams(), list(models.values()), skipped, cache_dir
             )
-        return cls._checked(folder, list(models.values()), found + skipped, what)
+        return cls._checked(folder, list(models.values()), found + skipped, what, cache_dir)
 
     @classmethod
-    def _checked(cls, folder, models, skipped, what) -> ModelLibrary:
+    def _checked(cls, folder, models, skipped, what, cache_dir=None) -> ModelLibrary:
         """The library of ``models`` (sorted by name), warning of skipped and unusable ones."""
         if not models:  # one error that says it all, rather than a warning per file
             raise ValueError(
@@ -234,7 +239,8 @@ class ModelLibrary:
         for message in unusable:
             warnings.warn(message, LibraryWarning, stacklevel=4)
         ordered = tuple(sorted(models, key=lambda m: m.name))
-        return cls(folder=folder, models=ordered, skipped=tuple(skipped))
+        cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+        return cls(folder=folder, models=ordered, skipped=tuple(skipped), cache_dir=cache)
 
     @property
     def names(self) -> tuple[str, ...]:

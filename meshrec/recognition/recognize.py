@@ -294,7 +294,7 @@ def recognize(
         # resolution warnings are the plain models' own (their cached resolution)
         seen = [probe_model(m, radius) for m in models]
         caught: list = []
-        run, own = _runner(seen, workers, scheduler)
+        run, own = _runner(seen, workers, scheduler, getattr(library, "cache_dir", None))
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
@@ -518,8 +518,9 @@ def _freedom_phrase(freedom: PoseFreedom) -> str:
     return " and ".join(parts)
 
 
-def _runner(models: list, workers, scheduler) -> tuple[ModelWorkers, bool]:
-    """The workers to register the models with, and whether they are made (and closed) here."""
+def _runner(models: list, workers, scheduler, cache_dir=None) -> tuple[ModelWorkers, bool]:
+    """The workers to register the models with, and whether they are made (and closed)
+    here; processes made here load the library from ``cache_dir`` (the library's own)."""
     if isinstance(workers, ModelWorkers):
         if scheduler is not None:
             raise ValueError(
@@ -528,7 +529,7 @@ def _runner(models: list, workers, scheduler) -> tuple[ModelWorkers, bool]:
         return workers, False
     if workers is None and scheduler is None:
         workers = 1
-    return ModelWorkers(models, workers=workers, scheduler=scheduler), True
+    return ModelWorkers(models, workers=workers, scheduler=scheduler, cache_dir=cache_dir), True
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:

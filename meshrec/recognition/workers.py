@@ -179,8 +179,8 @@ class ModelWorkers:
     scheduler : str or None
         The address of a Dask ``distributed`` scheduler (``"tcp://127.0.0.1:8786"``).
     cache_dir : str or path-like or None
-        The index cache the workers load from (``None``:
-        :func:`meshrec.model.cache.default_cache_dir`, resolved here).
+        The index cache the workers load from (``None``: a ModelLibrary's own
+        ``cache_dir``, else :func:`meshrec.model.cache.default_cache_dir`, resolved here).
 
     Attributes
     ----------
@@ -214,6 +214,8 @@ class ModelWorkers:
                 "library must be a ModelLibrary or an iterable of ModelIndex, got "
                 f"{type(library).__name__}"
             )
+        if cache_dir is None:  # a ModelLibrary's own cache (its workers load from it)
+            cache_dir = getattr(library, "cache_dir", None)
         models = tuple(library)
         for i, m in enumerate(models):
             check_instance(m, ModelIndex, f"library[{i}]")
