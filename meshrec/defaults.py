@@ -680,6 +680,9 @@ SERVICE_MAX_BODY_BYTES = TOUCH_MAX_FILE_BYTES
 #: Most touches in one request (`{"touches": [...]}`): each is registered on every model,
 #: so a request's time grows with them; a robot makes a handful before it decides.
 SERVICE_MAX_TOUCHES = 16
+#: A service error's message is one line of at most this many characters (the longest
+#: bad-input messages, a unit mismatch with its advice, run to about 400).
+SERVICE_ERROR_CHARS = 1000
 #: Requests waiting for the recognition lock beyond this get HTTP 503 at once (with a
 #: Retry-After) rather than queueing for minutes: a client that wants the answer now
 #: should know the service is busy.

@@ -233,7 +233,12 @@ def test_index_reports_progress_and_caches(env, tmp_path):
         (["recognize", "touch.csv", "--top", "0"], "--top must be at least 1"),
         (["recognize", "touch.csv", "--normal", "1,2"], "expected three finite numbers"),
         (["simulate", "no_such_model", "-o", "x.csv"], "no such file, nor a bundled model"),
-        (["simulate", "monkey_saddle", "-o", "x.csv", "--points", "4"], "n_points"),
+        (["simulate", "monkey_saddle", "-o", "x.csv", "--points", "4"], "--points must be"),
+        (
+            ["simulate", "monkey_saddle", "-o", "x.csv", "--points", "60"],
+            "--points must be an odd integer >= 5, got 60",
+        ),
+        (["simulate", "monkey_saddle", "-o", "x.csv", "--noise", "-1"], "--noise must be >= 0"),
         (["frobnicate"], "invalid choice"),
     ],
 )

@@ -179,6 +179,15 @@ def test_several_touches_in_one_frame_and_units(served):
     assert any(w.startswith('"units": mm is not used') for w in r.json()["warnings"])
     assert r.status_code == 200, r.text
     assert any("units" in w for w in r.json()["warnings"])
+    # a touch a thousand times too large: 400, the whole message with its advice (long
+    # messages were cut at 300 characters)
+    big = {"curves": [(1000.0 * c).tolist() for c in sims[0].touch.curves]}
+    r = _post(served.url, "/recognize", big)
+    assert r.status_code == 400
+    error = r.json()["error"]
+    assert "likely a unit mismatch" in error
+    assert error.endswith("or a meshrec.json note in their folder)")
+    assert len(error) <= meshrec.defaults.SERVICE_ERROR_CHARS
 
 
 def test_next_touch_answers_what_next_touch_json_prints(served):

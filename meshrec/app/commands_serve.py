@@ -286,7 +286,9 @@ def create_app(service: Service, max_body: int = defaults.SERVICE_MAX_BODY_BYTES
     state = {"pending": 0}
 
     def error(status: int, message: str, headers=None):
-        return JSONResponse({"error": one_line(message, 300)}, status, headers=headers)
+        return JSONResponse(
+            {"error": one_line(message, defaults.SERVICE_ERROR_CHARS)}, status, headers=headers
+        )
 
     async def body_of(request) -> bytes:
         length = request.headers.get("content-length")

@@ -71,6 +71,16 @@ def _warn_coarse(models) -> None:
             warnings.warn(coarse_message(m.name, m.resolution), ResolutionWarning, stacklevel=2)
 
 
+#: simulate_touch's arguments and the options of ``meshrec simulate`` that give them.
+_SIMULATE_OPTIONS = {
+    "n_points": "--points",
+    "noise": "--noise",
+    "length": "--length",
+    "contact": "--contact",
+    "probe_radius": "--probe-radius",
+}
+
+
 def run_simulate(args, out) -> int:
     """``meshrec simulate``: write a simulated touch (and its truth); 0."""
     import numpy as np
@@ -78,15 +88,23 @@ def run_simulate(args, out) -> int:
     from meshrec.sim.simulate import simulate_touch
 
     model_file = _resolve_model_file(args.model_file)
-    sim = simulate_touch(
-        model_file,
-        contact=args.contact,
-        rng=args.seed,
-        n_points=args.points,
-        noise=args.noise,
-        length=args.length,
-        probe_radius=args.probe_radius,
-    )
+    try:
+        sim = simulate_touch(
+            model_file,
+            contact=args.contact,
+            rng=args.seed,
+            n_points=args.points,
+            noise=args.noise,
+            length=args.length,
+            probe_radius=args.probe_radius,
+        )
+    except ValueError as exc:
+        # The message names the API's argument: name the option instead.
+        text = str(exc)
+        for name, option in _SIMULATE_OPTIONS.items():
+            if text.startswith(f"{name} "):
+                raise ValueError(option + text[len(name) :]) from None
+        raise
     from meshrec.io.checks import one_line
 
     sim.write(args.output, args.truth)  # the truth file only with --truth
