@@ -121,7 +121,10 @@ class Recognition:
         registered. When any motion is free that is not a symmetry of the model (a turn
         about a cylinder's axis is; a slide along it is not) the verdict is never
         ``recognised``: with one plausible model it is ``ambiguous`` with that model alone,
-        and the reason says the model is named but the pose is not fixed.
+        and the reason says the model is named but the pose is not fixed. Distinct poses
+        that fit about equally well (``pose_freedom.alternatives``) leave the verdict as
+        it is, but ``pose_freedom.fixed`` is False and the reason says the pose is one of
+        them: check ``fixed`` before acting on ``T_model_touch``.
     probe_offset : ProbeOffset or None
         The probe-offset check's evidence (:func:`meshrec.recognition.probing.probe_offset`
         at the best model's pose: the tip radius that best explains the data, the RMS
