@@ -389,7 +389,7 @@ def test_cli_output_that_cannot_be_written(setup):
             "simulate_huge_noise",
             r"noise must be at most 1\.0 \* sqrt\(area\) = [\d.]+ .*got 1e\+308",
         ),
-        ("simulate_huge_points", r"n_points must be <= 9999, got 1000000001"),
+        ("simulate_huge_points", r"--points must be <= 9999, got 1000000001"),
         (
             "normal_overflow",
             r"argument --normal: expected three finite numbers X,Y,Z, got '1e309,0,0'",

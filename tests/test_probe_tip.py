@@ -359,7 +359,7 @@ def test_the_command_line_refuses_a_negative_radius(models, tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1
     out = ["simulate", str(models["tube"].path), "-o", str(tmp_path / "x.csv")]
     assert main([*out, "--probe-radius", "nan"]) == 2
-    assert "probe_radius must be finite" in capsys.readouterr().err
+    assert "--probe-radius must be finite" in capsys.readouterr().err
 
 
 @pytest.mark.slow
