@@ -154,6 +154,31 @@ def test_recognize_refuses_bad_touch_lists(library, touch, error, message):
         meshrec.recognize(touch, library)
 
 
+def test_the_same_touch_twice_is_refused(library, three_on_ellipsoid, tmp_path, capsys):
+    # the same data given twice would count its evidence twice (its likelihood ratios
+    # squared): refused, by the API and by the command line; a copy of the same touch
+    # with other noise is another touch
+    touches, *_ = three_on_ellipsoid
+    with pytest.raises(ValueError, match=r"touch\[2\] holds the same data as touch\[0\]"):
+        meshrec.recognize([touches[0], touches[1], touches[0]], library)
+    from meshrec.app.cli import main
+
+    touches[0].to_file(tmp_path / "t.csv")
+    status = main(
+        [
+            "recognize",
+            str(tmp_path / "t.csv"),
+            str(tmp_path / "t.csv"),
+            "--models",
+            str(library.folder),
+            "--cache-dir",
+            str(library.cache_dir),
+        ]
+    )
+    assert status == 2
+    assert "holds the same data as touch[0]" in capsys.readouterr().err
+
+
 def test_recognize_names_a_bad_entry_and_geometry(library, three_on_ellipsoid):
     touches, *_ = three_on_ellipsoid
     with pytest.raises(TypeError, match=r"touch\[1\]"):

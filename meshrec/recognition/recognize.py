@@ -258,7 +258,8 @@ def recognize(
         (or a sequence of them) or ``progress`` not callable (the shared checks of
         :mod:`meshrec.io.checks`).
     ValueError
-        If there is no touch, the library is empty, ``method`` is unknown, ``geometry``
+        If there is no touch, two touches hold the same data, the library is empty,
+        ``method`` is unknown, ``geometry``
         does not hold one LocalGeometry per touch, a touch's size is out of all
         proportion to every model's (a likely unit mismatch, see
         :func:`meshrec.recognition.units.check_units`) or to another touch's
@@ -560,6 +561,19 @@ def _touches(touch) -> tuple[TouchData, ...]:
         raise ValueError("touch must hold at least one TouchData, got an empty sequence")
     for i, t in enumerate(touch):
         check_instance(t, TouchData, f"touch[{i}]")
+    # The same data twice (a file given twice) would count its evidence twice: its
+    # likelihood ratios squared, an ambiguous answer made "recognised" by repetition.
+    # (Two touches of the same place carry independent noise and are welcome.)
+    for j, b in enumerate(touch):
+        for i in range(j):
+            a = touch[i]
+            if len(a.curves) == len(b.curves) and all(
+                np.array_equal(x, y) for x, y in zip(a.curves, b.curves, strict=True)
+            ):
+                raise ValueError(
+                    f"touch[{j}] holds the same data as touch[{i}]: give each touch once "
+                    "(a repeated touch would count its evidence again)"
+                )
     return tuple(touch)
 
 
