@@ -119,6 +119,22 @@ def test_an_object_that_moved_between_touches_is_unknown(library):
     assert "moved" in rec.reason
 
 
+def test_touches_of_two_different_models_are_named_as_such(library):
+    # one touch on the ellipsoid, one on the capsule, in one frame: each alone fits its
+    # own model, no model fits both; the reason says so (not only "not in the library")
+    rng = np.random.default_rng(12)
+    T_world_model = world_pose(rng)
+    on_ellipsoid, _ = touches_at(library["ellipsoid"], T_world_model, rng, n=1)
+    on_capsule, _ = touches_at(library["capsule"], T_world_model, rng, n=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(on_ellipsoid + on_capsule, library)
+    assert rec.verdict == "unknown"
+    assert "touch 1: ellipsoid" in rec.reason
+    assert "touch 2: capsule" in rec.reason
+    assert "may be of different objects" in rec.reason
+
+
 def test_touches_too_far_apart_for_any_model_are_unknown(library):
     rng = np.random.default_rng(12)
     touches, _ = touches_at(library["torus"], world_pose(rng), rng, n=2)

@@ -1137,7 +1137,26 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
                 f"noise {noise:.3g}): the object moved between touches, or it is not in the "
                 "library"
             )
-    return ""
+    # Each touch alone fits some model, but not the same one: touches of different objects.
+    fitting = []
+    for k, (touch, geometry) in enumerate(zip(rec.touches, rec.geometries, strict=True)):
+        names = [
+            reg.model
+            for reg in rec.ranking
+            if not reg.rejected
+            and (fit := fits.get(reg.model)) is not None
+            and fit.registered > k
+            and _fits_alone(fit.single[k], touch, geometry)
+        ]
+        if not names:
+            return ""
+        fitting.append(names)
+    which = "; ".join(f"touch {k + 1}: {', '.join(names[:3])}" for k, names in enumerate(fitting))
+    return (
+        f"each touch alone fits a model of the library ({which}), but no model fits them "
+        "all at one pose: the touches may be of different objects, or the object moved "
+        "between them"
+    )
 
 
 def _fits_alone(reg, touch: TouchData, geometry: LocalGeometry) -> bool:
