@@ -343,7 +343,10 @@ def test_the_command_line_simulates_and_recognises_with_a_tip(models, tmp_path, 
     assert told["best"] == "tube"
     assert not any("ball tip" in w for w in told["warnings"])
     assert untold["probe_radius"] == 0.0
-    assert any("a ball tip? use --probe-radius" in w for w in untold["warnings"])
+    assert any(
+        "a ball tip? use --probe-radius (probe_radius=) with the tip's radius" in w
+        for w in untold["warnings"]
+    )
 
 
 def test_the_command_line_refuses_a_negative_radius(models, tmp_path, capsys):
@@ -406,7 +409,11 @@ def test_the_service_refuses_a_bad_radius(tmp_path):
     with pytest.raises(ValueError, match="--probe-radius must be >= 0"):
         Service([], None, probe_radius=-1.0)
     args = argparse.Namespace(
-        models=str(tmp_path), model_units=None, cache_dir=None, host="127.0.0.1", port=0,
+        models=str(tmp_path),
+        model_units=None,
+        cache_dir=None,
+        host="127.0.0.1",
+        port=0,
         probe_radius=float("nan"),
     )
     with pytest.raises(ValueError, match="--probe-radius must be finite"):

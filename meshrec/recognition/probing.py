@@ -123,9 +123,7 @@ def check_tip_fits(touches, geometries, radius: float) -> None:
         )
 
 
-def probe_offset(
-    points, model, T_model_touch, noise: float, min_gain: float = 0.0
-) -> ProbeOffset:
+def probe_offset(points, model, T_model_touch, noise: float, min_gain: float = 0.0) -> ProbeOffset:
     """The tip radius that best explains the fit of touch data to a model, and its evidence.
 
     The data are refined rigidly onto the model's surface (from ``T_model_touch``), then
@@ -314,7 +312,9 @@ def warn_probe_offset(rec, models) -> ProbeOffset | None:
         f"the data lie about {radius:.3g} outside the surface of {best.model!r} (they fit "
         f"the surface offset by {radius:.3g} with RMS {rms:.3g} against {rms0:.3g} for the "
         f"surface itself, beyond the noise {rec.noise:.3g}): a ball tip? use "
-        f"--probe-radius {_round(radius)} (probe_radius=) with the tip's radius",
+        f"--probe-radius (probe_radius=) with the tip's radius, which this fit puts at about "
+        f"{_round(radius)} (less than a tip wider than the surface's curvature radii: the "
+        "fit at the plain surface's pose flattens such an offset)",
         ProbeOffsetWarning,
         stacklevel=4,
     )
