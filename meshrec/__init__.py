@@ -42,6 +42,7 @@ _WHERE = {
     "ModelLibrary": "meshrec.model.library",
     "bundled_models_dir": "meshrec.model.library",
     "load_mesh": "meshrec.model.mesh",
+    "MeshWarning": "meshrec.model.mesh",
     "ResolutionWarning": "meshrec.model.resolution",
     "TouchAdvice": "meshrec.recognition.advice",
     "PoseFreedom": "meshrec.recognition.freedom",
@@ -109,7 +110,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.io.truth import Truth, read_truth, write_truth
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
-    from meshrec.model.mesh import load_mesh
+    from meshrec.model.mesh import MeshWarning, load_mesh
     from meshrec.model.resolution import ResolutionWarning
     from meshrec.recognition.advice import TouchAdvice, next_touch
     from meshrec.recognition.cascade import cascade_register, cascade_survivors
@@ -156,6 +157,7 @@ __all__ = [
     "LibraryScreen",
     "LibrarySites",
     "LocalGeometry",
+    "MeshWarning",
     "ModelIndex",
     "ModelLibrary",
     "ModelScore",

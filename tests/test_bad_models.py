@@ -405,3 +405,30 @@ def test_a_model_without_a_usable_curvature_is_reported(tmp_path):
     with pytest.warns(LibraryWarning, match=r"'ball'.*no surface site has a usable curvature"):
         lib = ModelLibrary.from_folder(folder, params=params, cache_dir=tmp_path / "cache")
     assert not lib["ball"].curvature.valid.any()
+
+
+def test_faces_collapsed_by_single_precision_far_from_the_origin_warn(tmp_path):
+    # An STL stores float32: a fine ellipsoid moved to 1e6 has its coordinates in steps
+    # of 0.0625, coarser than its 0.03 edges, and most faces collapse to zero area. The
+    # loss is said, with its cause; the same mesh near the origin, and duplicated faces
+    # (which lose nothing), give no warning.
+    from meshrec.model.mesh import MeshWarning, load_mesh
+
+    egg = trimesh.creation.icosphere(subdivisions=5)
+    egg.apply_scale([1.0, 0.8, 0.6])
+    egg.export(tmp_path / "near.stl")
+    twice = trimesh.Trimesh(egg.vertices, np.vstack([egg.faces, egg.faces]), process=False)
+    twice.export(tmp_path / "twice.ply")
+    egg.apply_translation([1e6, 1e6, 1e6])
+    egg.export(tmp_path / "far.stl")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(load_mesh(tmp_path / "near.stl")[1]) == 20480
+        assert len(load_mesh(tmp_path / "twice.ply")[1]) == 20480
+    with pytest.warns(
+        MeshWarning,
+        match=r"far\.stl'?: \d+ of its 20480 faces have no area .*single precision .*steps "
+        r"are 0\.0625",
+    ):
+        _, faces = load_mesh(tmp_path / "far.stl")
+    assert len(faces) < 10000

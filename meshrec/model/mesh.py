@@ -8,6 +8,7 @@ import io
 import math
 import os
 import stat
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -23,12 +24,18 @@ from meshrec.model._arrays import readonly
 __all__ = [
     "MESH_SUFFIXES",
     "MeshData",
+    "MeshWarning",
     "check_mesh_path",
     "is_mesh_file",
     "load_mesh",
     "parse_mesh",
     "read_mesh_file",
 ]
+
+
+class MeshWarning(UserWarning):
+    """A mesh file lost much of its geometry when it was cleaned."""
+
 
 #: Faces per chunk of the signed-volume sum (bounds its temporary memory).
 _CHUNK = 1 << 18
@@ -345,9 +352,7 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
     extra = {"skip_materials": True} if suffix == ".obj" else {}
     trimesh = trimesh_module()
     try:
-        loaded = trimesh.load(
-            io.BytesIO(data), file_type=suffix[1:], process=False, **extra
-        )
+        loaded = trimesh.load(io.BytesIO(data), file_type=suffix[1:], process=False, **extra)
         if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
             clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
             if clouds and len(clouds) == len(loaded.geometry):
@@ -392,10 +397,40 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
         vertices, faces = _compact(vertices, faces)  # unused non-finite vertices are harmless
         if not np.isfinite(vertices).all():
             raise ValueError(f"{where} has non-finite vertex coordinates (NaN or inf)")
+    _warn_degenerate(where, vertices, faces)
     vertices, faces = _clean(vertices, faces)
     if len(faces) == 0:
         raise ValueError(f"{where} holds only degenerate faces")
     return np.ascontiguousarray(vertices), np.ascontiguousarray(faces)
+
+
+def _warn_degenerate(where, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """A MeshWarning when more than ``defaults.MESH_LOST_FACES_WARN`` of the faces read
+    have no area (the test of ``_clean``, which drops them; duplicates are not counted:
+    they lose nothing), naming single precision far from the origin when that is the
+    cause (an STL stores float32: at 1e6 its steps are 0.06, and finer faces collapse)."""
+    if len(faces) == 0:
+        return
+    used = vertices[faces]  # (m, 3, 3)
+    diagonal = float(np.linalg.norm(used.max(axis=(0, 1)) - used.min(axis=(0, 1))))
+    a, b, c = used[:, 0], used[:, 1], used[:, 2]
+    longest = np.max([np.linalg.norm(u - v, axis=1) for u, v in ((b, a), (c, b), (a, c))], axis=0)
+    area2 = igl.doublearea(vertices, faces)  # as _clean measures it
+    flat = ~(area2 > defaults.MESH_MERGE_FRACTION * diagonal * longest)
+    lost = int(flat.sum())
+    if not lost > defaults.MESH_LOST_FACES_WARN * len(faces):
+        return
+    text = f"{where}: {lost} of its {len(faces)} faces have no area (degenerate) and are dropped"
+    extent = float(np.abs(used).max())
+    step = float(np.spacing(np.float32(extent)))
+    single = np.array_equal(used.astype(np.float32).astype(np.float64), used)
+    if single and step > defaults.MESH_LOST_FACES_WARN * float(np.median(longest[~flat])):
+        text += (
+            f"; its coordinates are single precision (as STL stores them) and reach "
+            f"{extent:.3g}, where their steps are {step:.3g}: finer faces collapse. Export "
+            "the model nearer the origin, or in double precision (OBJ)"
+        )
+    warnings.warn(text, MeshWarning, stacklevel=3)
 
 
 def _stl_problem(data: bytes) -> str | None:
