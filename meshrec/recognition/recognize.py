@@ -409,15 +409,16 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
         # No free motion, but distinct poses that fit about equally well: each has its
         # weight (a distribution over poses, as the models' probabilities), so the verdict
         # stays the model's; the reason and pose_freedom.fixed say the pose is open.
-        return dataclasses.replace(
-            rec,
-            reason=(
-                f"{rec.reason}; but {best.model}'s pose is one of "
-                f"{freedom.alternatives + 1} that fit about equally well and are not "
-                f"symmetries of it (the one reported has weight {freedom.pose_weight:.2f}): "
-                "touch again elsewhere on the object to fix it"
-            ),
+        poses = (
+            f"{best.model}'s pose is one of {freedom.alternatives + 1} that fit about "
+            "equally well and are not symmetries of it (the one reported has weight "
+            f"{freedom.pose_weight:.2f})"
         )
+        if rec.verdict == "recognised":
+            why = f"{rec.reason}; but {poses}: touch again elsewhere on the object to fix it"
+        else:
+            why = f"{rec.reason}; {poses}"
+        return dataclasses.replace(rec, reason=why)
     what = _freedom_phrase(freedom)
     if rec.verdict == "recognised":
         return dataclasses.replace(
