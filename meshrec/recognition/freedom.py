@@ -67,8 +67,9 @@ class PoseFreedom:
         Distinct poses besides the reported one, none a symmetry of the model of another,
         that the data cannot rule out (:func:`with_alternatives`); 0 when not checked.
     pose_weight : float
-        The weight of the reported pose and the poses it equals up to a symmetry of the
-        model, among the model's pose hypotheses; NaN when not checked.
+        The weight of the reported pose and the poses grouped with it (a symmetry of the
+        model, or a motion within the tolerance: :func:`with_alternatives`) among the
+        model's pose hypotheses; NaN when not checked.
     """
 
     free: int
