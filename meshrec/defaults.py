@@ -384,8 +384,9 @@ SIM_MAX_POINTS = 9_999
 #: model); relative, so that meshes in any unit merge alike (an absolute tolerance
 #: overflows on coordinates of 1e11 or merges tiny models away).
 MESH_MERGE_FRACTION = 1e-8
-#: A mesh whose cleaning drops more than this fraction of the faces read (degenerate or
-#: duplicate) gets a MeshWarning (meshrec.model.mesh), which names single precision far
+#: A mesh whose cleaning drops more than this fraction of the faces read as degenerate
+#: (duplicates lose nothing: not counted) gets a MeshWarning (meshrec.model.mesh), which
+#: names single precision far
 #: from the origin when its steps exceed this fraction of the median edge: a float32 STL
 #: at 1e6 (steps 0.06) lost 78% of a fine ellipsoid's faces without a word.
 MESH_LOST_FACES_WARN = 0.01

@@ -409,11 +409,7 @@ def test_the_service_refuses_a_bad_radius(tmp_path):
     with pytest.raises(ValueError, match="--probe-radius must be >= 0"):
         Service([], None, probe_radius=-1.0)
     args = argparse.Namespace(
-        models=str(tmp_path),
-        model_units=None,
-        cache_dir=None,
-        host="127.0.0.1",
-        port=0,
+        models=str(tmp_path), model_units=None, cache_dir=None, host="127.0.0.1", port=0,
         probe_radius=float("nan"),
     )
     with pytest.raises(ValueError, match="--probe-radius must be finite"):

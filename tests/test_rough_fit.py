@@ -57,14 +57,9 @@ def test_no_warning_on_one_smooth_patch_or_without_noise(shapes):
 
 def test_fit_to_noise_without_noise():
     g = meshrec.estimate_local_geometry(
-        [
-            np.column_stack([t, a * t, 0.1 * t**2])
-            for a, t in [
-                (0.0, np.linspace(-1, 1, 21)),
-                (1.0, np.linspace(-1, 1, 21)),
-                (-2.0, np.linspace(-1, 1, 21)),
-            ]
-        ]
+        [np.column_stack([t, a * t, 0.1 * t**2]) for a, t in
+         [(0.0, np.linspace(-1, 1, 21)), (1.0, np.linspace(-1, 1, 21)),
+          (-2.0, np.linspace(-1, 1, 21))]]
     )
     assert dataclasses.replace(g, noise_rms=0.0, fit_rms=0.0).fit_to_noise == 1.0
     assert dataclasses.replace(g, noise_rms=0.0, fit_rms=1e-9).fit_to_noise == math.inf
@@ -75,16 +70,8 @@ def test_cli_prints_one_warning_line_and_still_answers(shapes, tmp_path, capsys)
     sim = _edge_touch(shapes)
     sim.write(tmp_path / "edge.csv", tmp_path / "truth.json")
     folder = str(shapes["box"].path.parent)
-    code = main(
-        [
-            "recognize",
-            str(tmp_path / "edge.csv"),
-            "--models",
-            folder,
-            "--cache-dir",
-            str(tmp_path / "cache"),
-        ]
-    )
+    code = main(["recognize", str(tmp_path / "edge.csv"), "--models", folder,
+                 "--cache-dir", str(tmp_path / "cache")])
     out, err = capsys.readouterr()
     assert code == 0
     # Named; the curves run over the edge, so the touch may still slide along it.

@@ -93,7 +93,9 @@ def test_local_processes_give_the_serial_result(library, serial_plain, parallel_
         assert workers.workers == 2
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            parallel = [meshrec.recognize(t, lib, workers=workers, cascade=False) for t in touches]
+            parallel = [
+                meshrec.recognize(t, lib, workers=workers, cascade=False) for t in touches
+            ]
     assert serial[2].widened_seconds > 0
     for s, p in zip(serial, parallel, strict=True):
         _same(s, p)
@@ -440,7 +442,9 @@ def _cascade_exercised(recs):
 
 
 @pytest.mark.slow
-def test_local_processes_give_the_serial_cascades_result(library, cascade_cases, screened_small):
+def test_local_processes_give_the_serial_cascades_result(
+    library, cascade_cases, screened_small
+):
     lib, cache = library
     touches, serial = cascade_cases
     with warnings.catch_warnings():

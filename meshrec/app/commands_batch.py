@@ -88,7 +88,9 @@ def run_batch(
     """
     failed = 0
     for name in names:
-        doc = _one(name, library, units, models_units, method, to_json, probe_radius, workers)
+        doc = _one(
+            name, library, units, models_units, method, to_json, probe_radius, workers
+        )
         failed += "error" in doc
         out.write(json.dumps(doc) + "\n")
         out.flush()

@@ -46,7 +46,9 @@ def add_serve_parser(sub, models_arg) -> None:
         "(GET /health, POST /recognize, POST /next-touch)",
     )
     models_arg(s)
-    s.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    s.add_argument(
+        "--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)"
+    )
     s.add_argument(
         "--port",
         type=int,
@@ -110,7 +112,8 @@ def parse_body(raw: bytes, advice: bool) -> dict:
         raise BadRequest(f"request body: not valid JSON ({one_line(str(exc), 120)})") from None
     if not isinstance(body, dict):
         raise BadRequest(
-            'request body: expected a JSON object, one touch {"curves": ...} or {"touches": [...]}'
+            'request body: expected a JSON object, one touch {"curves": ...} or '
+            '{"touches": [...]}'
         )
     options = ("units", "approach", "seed") if advice else ("units",)
     allowed = {"touches", *options} if "touches" in body else {*_TOUCH_KEYS, *options}
@@ -243,7 +246,9 @@ class Service:
                     workers=self.workers,
                 )
                 if advice:
-                    found = next_touch(rec, self.library, approach=job["approach"], rng=job["seed"])
+                    found = next_touch(
+                        rec, self.library, approach=job["approach"], rng=job["seed"]
+                    )
             except ValueError as exc:
                 text = one_line(str(exc), None)
                 if UNIT_MISMATCH in text:

@@ -352,7 +352,9 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
     extra = {"skip_materials": True} if suffix == ".obj" else {}
     trimesh = trimesh_module()
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=suffix[1:], process=False, **extra)
+        loaded = trimesh.load(
+            io.BytesIO(data), file_type=suffix[1:], process=False, **extra
+        )
         if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
             clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
             if clouds and len(clouds) == len(loaded.geometry):
@@ -397,34 +399,29 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
         vertices, faces = _compact(vertices, faces)  # unused non-finite vertices are harmless
         if not np.isfinite(vertices).all():
             raise ValueError(f"{where} has non-finite vertex coordinates (NaN or inf)")
-    _warn_degenerate(where, vertices, faces)
-    vertices, faces = _clean(vertices, faces)
+    n_read = len(faces)
+    vertices, faces, degenerate = _clean(vertices, faces)
     if len(faces) == 0:
         raise ValueError(f"{where} holds only degenerate faces")
+    _warn_degenerate(where, n_read, degenerate, vertices, faces)
     return np.ascontiguousarray(vertices), np.ascontiguousarray(faces)
 
 
-def _warn_degenerate(where, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """A MeshWarning when more than ``defaults.MESH_LOST_FACES_WARN`` of the faces read
-    have no area (the test of ``_clean``, which drops them; duplicates are not counted:
-    they lose nothing), naming single precision far from the origin when that is the
-    cause (an STL stores float32: at 1e6 its steps are 0.06, and finer faces collapse)."""
-    if len(faces) == 0:
+def _warn_degenerate(where, n_read, degenerate, vertices, faces) -> None:
+    """A MeshWarning when ``_clean`` dropped more than ``defaults.MESH_LOST_FACES_WARN`` of
+    the ``n_read`` faces read as degenerate (``degenerate`` of them; duplicates lose nothing
+    and are not counted), naming single precision far from the origin when that is the
+    cause: the cleaned vertices (coordinates as read) are all float32 (an STL stores
+    float32) and their step at the largest coordinate exceeds that fraction of the median
+    edge (at 1e6 the steps are 0.06, and finer faces collapse)."""
+    if not degenerate > defaults.MESH_LOST_FACES_WARN * n_read:
         return
-    used = vertices[faces]  # (m, 3, 3)
-    diagonal = float(np.linalg.norm(used.max(axis=(0, 1)) - used.min(axis=(0, 1))))
-    a, b, c = used[:, 0], used[:, 1], used[:, 2]
-    longest = np.max([np.linalg.norm(u - v, axis=1) for u, v in ((b, a), (c, b), (a, c))], axis=0)
-    area2 = igl.doublearea(vertices, faces)  # as _clean measures it
-    flat = ~(area2 > defaults.MESH_MERGE_FRACTION * diagonal * longest)
-    lost = int(flat.sum())
-    if not lost > defaults.MESH_LOST_FACES_WARN * len(faces):
-        return
-    text = f"{where}: {lost} of its {len(faces)} faces have no area (degenerate) and are dropped"
-    extent = float(np.abs(used).max())
+    text = f"{where}: {degenerate} of its {n_read} faces have no area (degenerate) and are dropped"
+    extent = float(np.abs(vertices).max())
+    single = np.array_equal(vertices.astype(np.float32).astype(np.float64), vertices)
     step = float(np.spacing(np.float32(extent)))
-    single = np.array_equal(used.astype(np.float32).astype(np.float64), used)
-    if single and step > defaults.MESH_LOST_FACES_WARN * float(np.median(longest[~flat])):
+    edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
+    if single and step > defaults.MESH_LOST_FACES_WARN * float(np.median(edges)):
         text += (
             f"; its coordinates are single precision (as STL stores them) and reach "
             f"{extent:.3g}, where their steps are {step:.3g}: finer faces collapse. Export "
@@ -520,7 +517,7 @@ def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nd
     return vertices[used], index[faces]
 
 
-def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """Merge, drop degenerate / duplicate faces and unused vertices, orient the faces.
 
     Parameters
@@ -535,11 +532,13 @@ def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndar
     vertices : (k, 3) float64
     faces : (l, 3) int64
         Possibly empty (every face degenerate).
+    degenerate : int
+        The faces dropped as degenerate (duplicates not counted).
     """
     vertices, faces = _compact(vertices, faces)
     diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
     if not diagonal > 0.0:
-        return vertices[:0], faces[:0]
+        return vertices[:0], faces[:0], len(faces)
     vertices, faces = _merge_vertices(vertices, faces, diagonal)
     # degenerate: a repeated vertex, or a height below the merge distance
     a, b, c = (vertices[faces[:, i]] for i in range(3))
@@ -548,14 +547,16 @@ def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndar
     height_ok = double_area > defaults.MESH_MERGE_FRACTION * diagonal * longest
     distinct = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2])
     distinct &= faces[:, 0] != faces[:, 2]
-    faces = faces[distinct & height_ok]
+    kept = distinct & height_ok
+    degenerate = int(len(faces) - np.count_nonzero(kept))
+    faces = faces[kept]
     # duplicates, whatever their winding: keep the first
     if len(faces):
         faces = faces[_first_of_rows(np.sort(faces, axis=1))]
     vertices, faces = _compact(vertices, faces)
     if len(faces):
         faces = _orient(vertices, faces)
-    return vertices, faces
+    return vertices, faces, degenerate
 
 
 def _orient(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -123,7 +123,9 @@ def check_tip_fits(touches, geometries, radius: float) -> None:
         )
 
 
-def probe_offset(points, model, T_model_touch, noise: float, min_gain: float = 0.0) -> ProbeOffset:
+def probe_offset(
+    points, model, T_model_touch, noise: float, min_gain: float = 0.0
+) -> ProbeOffset:
     """The tip radius that best explains the fit of touch data to a model, and its evidence.
 
     The data are refined rigidly onto the model's surface (from ``T_model_touch``), then

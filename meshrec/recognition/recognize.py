@@ -932,7 +932,9 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=None) -> Recognition:
+def _with_verdict(
+    rec: Recognition, fits: dict, models: list, method: str, run=None
+) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
