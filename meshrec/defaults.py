@@ -516,6 +516,10 @@ POSE_SYMMETRY_VERTICES = 2000
 #: POSE_SYMMETRY_VERTICES vertices, and the up to REFINE_BEST poses left out weigh less
 #: than 1% together.
 POSE_ALTERNATIVE_MIN_WEIGHT = 1e-3
+#: A motion is tested for a symmetry on every this-many-th of the vertices first, and on
+#: all of them only when those stay on the surface: the same decision, and a motion that
+#: is not a symmetry (most of those tested) costs a sixteenth of the closest-point queries.
+POSE_SYMMETRY_PROBE_STRIDE = 16
 #: Two pose hypotheses are one pose when the object moved from one to the other stays
 #: within this many times the pose's precision (PoseFreedom.sigma, the one-sigma
 #: displacement of a data point) of itself, or within the symmetry tolerance above: a

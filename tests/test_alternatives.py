@@ -116,6 +116,34 @@ def test_poses_of_negligible_weight_are_not_compared():
     assert len(calls) == 1  # only the second pose was compared with the first
 
 
+def test_a_motion_is_tested_on_a_subset_first_with_the_same_decision():
+    calls = []
+
+    def distance(p):
+        calls.append(len(p))
+        return _box_distance(p)
+
+    pts = _box_points()
+    stride = defaults.POSE_SYMMETRY_PROBE_STRIDE
+    T0 = _pose(np.eye(3))
+    # not a symmetry: the subset alone settles it
+    f = with_alternatives(_freedom(), [T0, _pose(CORNER_TURN)], [0.5, 0.5], pts, distance, 1e-6)
+    assert (f.alternatives, calls) == (1, [len(pts[::stride])])
+    # a symmetry: the subset, then every vertex
+    calls.clear()
+    f = with_alternatives(_freedom(), [T0, _pose(HALF_TURN)], [0.5, 0.5], pts, distance, 1e-6)
+    assert (f.alternatives, calls) == (0, [len(pts[::stride]), len(pts)])
+    # one vertex off the surface, outside the subset: the subset passes, every vertex
+    # does not (the brute-force answer), under a motion that is none
+    off = pts.copy()
+    off[1] *= 1.2
+    low, high = _box_distance(off[::stride]).max(), _box_distance(off).max()
+    assert low < 1e-9 < high
+    for tolerance, same in ((0.5 * high, False), (2.0 * high, True)):
+        f = with_alternatives(_freedom(), [T0, T0], [0.5, 0.5], off, distance, tolerance)
+        assert f.alternatives == (0 if same else 1)
+
+
 @pytest.mark.parametrize(
     ("poses", "weights", "vertices", "tolerance", "coverage", "match"),
     [
