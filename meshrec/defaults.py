@@ -463,6 +463,28 @@ LOOKUP_WIDEN_SCALE = 4.0
 #: the YCB scissors' 6,068 for a touch across its edge) and 64 spread candidates then left
 #: the true contact 6 mm from the nearest.
 LOOKUP_DENSE_CANDIDATES = 256
+#: The curvature estimate at the contact is out of its range when the curves would turn by
+#: more than this many radians over their half-length at it (the larger principal
+#: curvature's magnitude times the half-length). Then, before one model is named, the
+#: models the lookup alone rejected are registered again with the window open
+#: (LOOKUP_OPEN_SCALE). Measured (stop 28): the bundled surfaces and objects 0.08 to 0.85;
+#: 120 touches each on 30 generated shapes 1.17 at most (default touches), 0.67 (curves
+#: 0.3, noise 0.002), 0.54 (curves 0.2, noise 0.004); 10 mm objects in metres touched with
+#: the default noise of 1 mm (noise 6% of the half-length) 0.7 to 431, where the lookup
+#: left the touched model out and another was named with probability 1; the YCB scans
+#: (default touches) up to 5.3 across rims and box edges.
+CURVATURE_MAX_TURN = 2.0
+#: A lookup window this many times the calibrated one holds every site of any model.
+LOOKUP_OPEN_SCALE = 1e6
+#: One touch whose noise (LocalGeometry.noise_rms, the noise its samples show) is more
+#: than this fraction of its curves' half-length is never `recognised`: the probabilities
+#: were measured on touches up to about half of it (curves 0.2 long with noise +-0.004 on
+#: unit-size shapes: 0.023; the YCB scans' default touches 0.039 at most). Measured
+#: (stop 28): 10 mm objects in metres touched with the default noise of 1 mm, 0.057 to
+#: 0.076, gave 5 `recognised` answers naming the wrong model with probability 1 in 35
+#: touches (the curvature estimate 10 to 400 times too large, the search missing the
+#: touched model's pose).
+SCORE_MAX_NOISE_FRACTION = 0.045
 
 # --- pose freedom (meshrec.recognition.freedom) ----------------------------------------------
 #: A rigid motion is free at the fitted pose when the singular value of the rigid Jacobian

@@ -850,14 +850,21 @@ def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
 
 
 def _widened(
-    rec: Recognition, models: dict, method: str, run, max_candidates=None, only=None
+    rec: Recognition,
+    models: dict,
+    method: str,
+    run,
+    max_candidates=None,
+    only=None,
+    lookup_scale: float = defaults.LOOKUP_WIDEN_SCALE,
 ) -> tuple[Recognition, frozenset]:
     """One touch: register every model again with the (K, H) window widened; keep each
     one's better fit.
 
     Each model may look at up to ``max_candidates`` candidates (None: the default number),
     and only the models named in ``only`` (None: all) are registered; the others are kept
-    as they are.
+    as they are. ``lookup_scale`` widens the window (``defaults.LOOKUP_OPEN_SCALE`` opens
+    it to every site).
 
     Returns the merged recognition and the names of the models whose widened lookup
     filled the cap (``defaults.MAX_CANDIDATES`` candidates): only for them can a denser
@@ -871,7 +878,7 @@ def _widened(
         [models[reg.model] for reg in todo],
         rec.geometry,
         method,
-        lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        lookup_scale=lookup_scale,
         max_candidates=max_candidates,
     )
     wides = {reg.model: wide for reg, wide in zip(todo, regs, strict=True)}
@@ -1006,6 +1013,39 @@ def _with_verdict(
             "the first pass fitted no model to within the noise (or registered none): the "
             f"curvature lookup was widened {defaults.LOOKUP_WIDEN_SCALE:g} times and {looked}"
         )
+    turn = _curvature_turn(rec.geometry)
+    if len(rec.touches) == 1 and turn > defaults.CURVATURE_MAX_TURN:
+        rejected = frozenset(r.model for r in rec.ranking if r.rejected)
+        if rejected and _would_recognise(rec, prior, n, noise):
+            # The curvature estimate is out of its range (the curves would turn by more
+            # than CURVATURE_MAX_TURN radians over their half-length: curves long against
+            # the radius of curvature, or noise large against their length), and the
+            # lookup window built on it may have left the right model out. Before one model
+            # is named, the models the lookup alone rejected are registered with the
+            # window open (every site a candidate, spread as usual).
+            t1 = time.perf_counter()
+            if run is None:
+                run = ModelWorkers(models, workers=1)
+            with timed("widened"):
+                rec, _ = _widened(
+                    rec,
+                    by_name,
+                    method,
+                    run,
+                    only=rejected,
+                    lookup_scale=defaults.LOOKUP_OPEN_SCALE,
+                )
+                scores, noise = _score(rec, prior)
+                rec = _ordered(rec, scores)
+            t_wide += time.perf_counter() - t1
+            found = [r.model for r in rec.ranking if r.model in rejected and not r.rejected]
+            cautions.append(
+                f"the curvature estimate at the contact is out of its range (the curves would "
+                f"turn by {turn:.3g} radians over their half-length, more than "
+                f"defaults.CURVATURE_MAX_TURN = {defaults.CURVATURE_MAX_TURN:g}): the "
+                f"{len(rejected)} model(s) that the curvature lookup rejected were registered "
+                f"again on every site ({len(found)} registered)"
+            )
     with timed("scoring"):
         t1 = time.perf_counter()
         names = [s.model for s in rec.scores]
@@ -1015,6 +1055,7 @@ def _with_verdict(
         if prior is not None:
             v = _with_data_plausible(v, rec.scores, n, noise)
             cautions.append(_flat_caution(rec.scores, prior))
+        v = _within_calibration(v, rec)
         reason = v.reason
         rough = False
         for k, g in enumerate(rec.geometries):
@@ -1069,6 +1110,46 @@ def _with_verdict(
         widened_seconds=t_wide,
         touch_rms=per_touch,
     )
+
+
+def _within_calibration(v: Verdict, rec: Recognition) -> Verdict:
+    """One touch whose noise is too large against its curves' length
+    (``defaults.SCORE_MAX_NOISE_FRACTION``) names no model: ``recognised`` becomes
+    ``ambiguous``, the model alone in ``plausible``, and the reason says why."""
+    if len(rec.touches) != 1 or v.verdict != "recognised":
+        return v
+    g = rec.geometry
+    fraction = float(g.noise_rms) / float(g.half_length)
+    if not fraction > defaults.SCORE_MAX_NOISE_FRACTION:
+        return v
+    return Verdict(
+        "ambiguous",
+        v.plausible,
+        f"{v.reason}; but the touch's noise ({float(g.noise_rms):.3g}) is "
+        f"{100 * fraction:.2g}% of the curves' half-length, beyond the "
+        f"{100 * defaults.SCORE_MAX_NOISE_FRACTION:g}% up to which the probabilities were "
+        "measured to hold: at that noise the curvature estimate and the search may miss "
+        "the right model's pose; touch again with longer curves or a finer probe, or add "
+        "touches",
+        v.fit_ratio,
+    )
+
+
+def _curvature_turn(geometry: LocalGeometry) -> float:
+    """How far the curves would turn, in radians, over their half-length at the estimated
+    curvature (the larger principal curvature's magnitude times the half-length)."""
+    return max(abs(float(geometry.k1)), abs(float(geometry.k2))) * float(geometry.half_length)
+
+
+def _would_recognise(rec: Recognition, prior, n: int, noise: float) -> bool:
+    """Whether the scores as they stand name one model (``recognised``)."""
+    names = [s.model for s in rec.scores]
+    probs = [s.probability for s in rec.scores]
+    top = rec.scores[0] if rec.scores else None
+    v = decide(names, probs, None if top is None else top.rms, n, noise)
+    if prior is not None:
+        v = _with_data_plausible(v, rec.scores, n, noise)
+    return v.verdict == "recognised"
 
 
 def _fits_worse_than_noise(rec: Recognition, n: int, noise: float) -> bool:

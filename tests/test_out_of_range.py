@@ -1,0 +1,94 @@
+"""Touches outside the range the scores were measured on: noise large against the curves'
+length, and a curvature estimate the lookup cannot be trusted with.
+
+Three small models in metres (an ellipsoid of semi-axes 20, 15.5 and 10 mm, a cone and a
+12-sided cylinder), touched on the ellipsoid with the default simulated noise of +-1 mm:
+about 6% of the curves' half-length (the scores were measured up to about 2.3%). The
+curvature estimated from such curves can be many times too large (the curves would turn by
+more than ``defaults.CURVATURE_MAX_TURN`` radians over their half-length), and the
+lookup then rejects the touched model. Before this check, seed 0 named the cone with
+probability 1.000 (the ellipsoid rejected by the lookup) and seed 7 the cone with 0.996.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+import trimesh
+
+import meshrec
+from meshrec import defaults
+from meshrec.registration.candidates import find_candidates
+from meshrec.registration.register import touch_geometry
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    root = tmp_path_factory.mktemp("small")
+    folder = root / "models"
+    folder.mkdir()
+    e = trimesh.creation.icosphere(5, radius=1.0)
+    e.apply_scale([0.02, 0.0155, 0.01])
+    e.export(folder / "ellipsoid.stl")
+    trimesh.creation.cone(radius=0.012, height=0.03, sections=48).export(folder / "cone.stl")
+    trimesh.creation.cylinder(radius=0.01, height=0.03, sections=12).export(
+        folder / "cylinder.stl"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=root / "cache")
+    return folder, lib
+
+
+def _recognise(lib, touch):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return meshrec.recognize(touch, lib)
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_a_touch_noisy_against_its_length_names_no_model(small, seed):
+    folder, lib = small
+    touch = meshrec.simulate_touch(folder / "ellipsoid.stl", rng=seed).touch
+    g = touch_geometry(touch)
+    assert g.noise_rms / g.half_length > defaults.SCORE_MAX_NOISE_FRACTION
+    rec = _recognise(lib, touch)
+    assert rec.verdict != "recognised"
+    if rec.verdict == "ambiguous" and len(rec.plausible) == 1:
+        assert "of the curves' half-length" in rec.reason
+
+
+def test_models_the_lookup_rejected_are_registered_on_every_site(small):
+    folder, lib = small
+    touch = meshrec.simulate_touch(folder / "ellipsoid.stl", rng=0).touch
+    g = touch_geometry(touch)
+    assert max(abs(g.k1), abs(g.k2)) * g.half_length > defaults.CURVATURE_MAX_TURN
+    # the lookup at its calibrated window rejects the touched model
+    first = meshrec.register(touch, lib["ellipsoid"], g)
+    assert first.rejected
+    rec = _recognise(lib, touch)
+    assert not any(r.rejected for r in rec.ranking)
+    assert rec.best.model == "ellipsoid"
+    assert any("registered again on every site" in w for w in rec.warnings)
+
+
+def test_the_same_models_touched_with_little_noise_are_recognised(small):
+    folder, lib = small
+    touch = meshrec.simulate_touch(folder / "ellipsoid.stl", rng=0, noise=5e-5).touch
+    rec = _recognise(lib, touch)
+    assert (rec.verdict, rec.best.model) == ("recognised", "ellipsoid")
+    assert not any("out of its range" in w for w in rec.warnings)
+
+
+def test_an_open_lookup_window_holds_every_site(small):
+    _, lib = small
+    table = lib["cone"].curvature
+    # a curvature far from any of the cone's (radius 10 um): no site at the calibrated
+    # window, every site of the lookup table with the window open
+    calibrated = find_candidates(lib["cone"], 1e5, 1e5, 0.005, 1e-5)
+    opened = find_candidates(
+        lib["cone"], 1e5, 1e5, 0.005, 1e-5, lookup_scale=defaults.LOOKUP_OPEN_SCALE
+    )
+    assert calibrated.raw_hits == 0
+    assert opened.raw_hits == len(table.table_sites)
