@@ -167,9 +167,10 @@ def test_with_alternatives_bad_input_raises(poses, weights, vertices, tolerance,
 
 def test_touch_near_a_box_corner_names_the_box_but_not_one_pose(tmp_path):
     """A 50 x 30 x 20 box (mm, alone in its folder): three curves near a corner, on its three
-    faces, fit it as well after a third of a turn about the corner's diagonal. The box is
-    recognised, but its pose is one of two (not fixed), and the true pose (up to the box's
-    half-turns) is among the poses the data cannot rule out."""
+    faces, fit it as well after a third of a turn about the corner's diagonal. The box
+    alone fits, but its pose is one of two (not fixed), and the true pose (up to the box's
+    half-turns) is among the poses the data cannot rule out. One touch across the box's
+    edges names no model: the verdict is ``ambiguous`` with the box alone plausible."""
     folder = tmp_path / "models"
     folder.mkdir()
     trimesh.creation.box(extents=(50.0, 30.0, 20.0)).export(folder / "box.stl")
@@ -177,7 +178,8 @@ def test_touch_near_a_box_corner_names_the_box_but_not_one_pose(tmp_path):
     sim = meshrec.simulate_touch(folder / "box.stl", rng=1, noise=0.01)
     rec = meshrec.recognize(sim.touch, lib)
     assert rec.best.model == "box"
-    assert rec.verdict == "recognised"
+    assert (rec.verdict, rec.plausible) == ("ambiguous", ("box",))
+    assert "crosses a sharp edge of box (its points lie on 3 faces" in rec.reason
     assert rec.pose_freedom.free == 0
     assert rec.pose_freedom.alternatives >= 1
     assert not rec.pose_freedom.fixed

@@ -19,6 +19,7 @@ import trimesh
 
 import meshrec
 from meshrec import defaults
+from meshrec.app.cli import main
 from meshrec.registration.candidates import find_candidates
 from meshrec.registration.register import touch_geometry
 
@@ -54,9 +55,9 @@ def test_a_touch_noisy_against_its_length_names_no_model(small, seed):
     g = touch_geometry(touch)
     assert g.noise_rms / g.half_length > defaults.SCORE_MAX_NOISE_FRACTION
     rec = _recognise(lib, touch)
-    assert rec.verdict != "recognised"
-    if rec.verdict == "ambiguous" and len(rec.plausible) == 1:
-        assert "of the curves' half-length" in rec.reason
+    # one model stands out (0.98 and 0.996), but is not named
+    assert (rec.verdict, len(rec.plausible)) == ("ambiguous", 1)
+    assert "of the curves' half-length" in rec.reason
 
 
 def test_models_the_lookup_rejected_are_registered_on_every_site(small):
@@ -92,3 +93,22 @@ def test_an_open_lookup_window_holds_every_site(small):
     )
     assert calibrated.raw_hits == 0
     assert opened.raw_hits == len(table.table_sites)
+
+
+def test_cli_says_the_best_model_is_not_named(small, tmp_path, capsys):
+    folder, lib = small
+    sim = meshrec.simulate_touch(folder / "ellipsoid.stl", rng=0)
+    sim.write(tmp_path / "touch.csv", tmp_path / "truth.json")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(sim.touch, lib)
+    assert (rec.verdict, rec.plausible) == ("ambiguous", ("ellipsoid",))
+    assert rec.pose_freedom.fixed
+    code = main(
+        ["recognize", str(tmp_path / "touch.csv"), "--models", str(folder),
+         "--cache-dir", str(tmp_path / "cache")]
+    )
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "ambiguous: ellipsoid fits best, but one such touch cannot name it" in out
+    assert "of the curves' half-length" in out

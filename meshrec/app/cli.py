@@ -300,8 +300,17 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
         what = rec.plausible[0]
         if rec.pose_freedom is not None and not rec.pose_freedom.fixed:
             what += f", its pose {rec.pose_freedom.description}"
-    elif rec.verdict == "ambiguous" and len(rec.plausible) == 1 and rec.pose_freedom:
+    elif (
+        rec.verdict == "ambiguous"
+        and len(rec.plausible) == 1
+        and rec.pose_freedom
+        and not rec.pose_freedom.fixed
+    ):
         what = f"{rec.plausible[0]}, but its pose is not fixed ({rec.pose_freedom.description})"
+    elif rec.verdict == "ambiguous" and len(rec.plausible) == 1:
+        # one model stands out, but the touch is one from which none is named (across a
+        # sharp edge, or too noisy for its length: the reason says which)
+        what = f"{rec.plausible[0]} fits best, but one such touch cannot name it"
     elif rec.verdict == "ambiguous":
         what = " or ".join(rec.plausible)
     else:

@@ -50,7 +50,7 @@ def patches_touched(model, points: np.ndarray) -> np.ndarray:
     return np.column_stack([patch[order], count[order]]).astype(np.int64)
 
 
-def warn_sharp_edges(rec, models) -> None:
+def warn_sharp_edges(rec, models) -> int:
     """A SharpEdgeWarning when the data at the best model's pose cross a sharp edge.
 
     A patch counts when at least ``defaults.EDGE_MIN_POINTS`` points lie on it (a point
@@ -61,13 +61,19 @@ def warn_sharp_edges(rec, models) -> None:
     rec : Recognition
     models : list of ModelIndex
         The models recognised against (``rec.best.model`` among them).
+
+    Returns
+    -------
+    int
+        The faces or smooth patches the data lie on (0 when no model was registered); the
+        warning is raised when it is more than 1.
     """
     best = rec.best
     if best is None or best.T_model_touch is None:
-        return
+        return 0
     model = next((m for m in models if m.name == best.model), None)
     if model is None:
-        return
+        return 0
     touches = rec.touches or (rec.touch,)
     points = apply_transform(best.T_model_touch, np.vstack([t.points for t in touches]))
     rows = patches_touched(model, points)
@@ -80,3 +86,4 @@ def warn_sharp_edges(rec, models) -> None:
             SharpEdgeWarning,
             stacklevel=3,
         )
+    return crossed

@@ -88,7 +88,9 @@ class Recognition:
     plausible : tuple of str
         The models the data cannot rule out, best first: one when recognised, two or
         more when ambiguous (or one, when only it fits but its pose is free: see
-        ``pose_freedom``), none when unknown.
+        ``pose_freedom``; or when one touch, too noisy for its length
+        (``defaults.SCORE_MAX_NOISE_FRACTION``) or across a sharp edge of that model,
+        names none: see ``reason``), none when unknown.
     noise : float
         The noise level estimated from the touch (standard deviation, data units).
     reason : str
@@ -324,7 +326,7 @@ def recognize(
                     rec = _with_pose_freedom(rec, seen)
                 with timed("cautions"):
                     _warn_coarse(rec, models)
-                    warn_sharp_edges(rec, seen)
+                    rec = _across_an_edge(rec, warn_sharp_edges(rec, seen))
                 if radius == 0.0:
                     with timed("probe_offset"):
                         rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
@@ -1109,6 +1111,24 @@ def _with_verdict(
         scoring_seconds=t_score,
         widened_seconds=t_wide,
         touch_rms=per_touch,
+    )
+
+
+def _across_an_edge(rec: Recognition, crossed: int) -> Recognition:
+    """One touch whose data lie on more than one face or smooth patch of the named model
+    (across a sharp edge) names no model: ``recognised`` becomes ``ambiguous``, the model
+    alone in ``plausible``, and the reason says why."""
+    if len(rec.touches) != 1 or rec.verdict != "recognised" or crossed < 2:
+        return rec
+    return dataclasses.replace(
+        rec,
+        verdict="ambiguous",
+        reason=(
+            f"{rec.reason}; the touch crosses a sharp edge of {rec.best.model} (its points "
+            f"lie on {crossed} faces or smooth patches), and one touch across an edge is not "
+            "enough to name a model: there the search may miss the right model's pose while "
+            "another model fits; touch again away from the edge, or add touches"
+        ),
     )
 
 
