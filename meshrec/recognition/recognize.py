@@ -1050,12 +1050,8 @@ def _with_verdict(
             )
     with timed("scoring"):
         t1 = time.perf_counter()
-        names = [s.model for s in rec.scores]
-        probs = [s.probability for s in rec.scores]
-        top = rec.scores[0] if rec.scores else None
-        v = decide(names, probs, None if top is None else top.rms, n, noise)
+        v = _decided(rec, prior, n, noise)
         if prior is not None:
-            v = _with_data_plausible(v, rec.scores, n, noise)
             cautions.append(_flat_caution(rec.scores, prior))
         v = _within_calibration(v, rec)
         reason = v.reason
@@ -1161,15 +1157,20 @@ def _curvature_turn(geometry: LocalGeometry) -> float:
     return max(abs(float(geometry.k1)), abs(float(geometry.k2))) * float(geometry.half_length)
 
 
-def _would_recognise(rec: Recognition, prior, n: int, noise: float) -> bool:
-    """Whether the scores as they stand name one model (``recognised``)."""
+def _decided(rec: Recognition, prior, n: int, noise: float) -> Verdict:
+    """The verdict of the scores as they stand (a flat touch's prior never decides alone)."""
     names = [s.model for s in rec.scores]
     probs = [s.probability for s in rec.scores]
     top = rec.scores[0] if rec.scores else None
     v = decide(names, probs, None if top is None else top.rms, n, noise)
     if prior is not None:
         v = _with_data_plausible(v, rec.scores, n, noise)
-    return v.verdict == "recognised"
+    return v
+
+
+def _would_recognise(rec: Recognition, prior, n: int, noise: float) -> bool:
+    """Whether the scores as they stand name one model (``recognised``)."""
+    return _decided(rec, prior, n, noise).verdict == "recognised"
 
 
 def _fits_worse_than_noise(rec: Recognition, n: int, noise: float) -> bool:
