@@ -195,3 +195,24 @@ def test_touch_near_a_box_corner_names_the_box_but_not_one_pose(tmp_path):
     # the true pose is found and holds a real share of the weight; so does another one
     assert weights.get(True, 0.0) > 0.2
     assert weights.get(False, 0.0) > 0.2
+
+
+def test_two_touches_across_the_box_edges_are_not_held_back_by_the_one_touch_rule(tmp_path):
+    """The rule that one touch across a sharp edge names no model is for one touch: two
+    touches of the box near two of its corners, in one frame, are judged on their joint
+    fit (the box alone in the folder)."""
+    folder = tmp_path / "models"
+    folder.mkdir()
+    trimesh.creation.box(extents=(50.0, 30.0, 20.0)).export(folder / "box.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    rng = np.random.default_rng(5)
+    sims = [
+        meshrec.simulate_touch(folder / "box.stl", contact=c, rng=rng, noise=0.01, transform=False)
+        for c in ([23.0, 15.0, 8.0], [-23.0, -15.0, 8.0])
+    ]
+    T = np.eye(4)
+    T[:3, 3] = [1.0, 2.0, 3.0]
+    with pytest.warns(meshrec.SharpEdgeWarning):
+        rec = meshrec.recognize([s.touch.transformed(T) for s in sims], lib)
+    assert (rec.verdict, rec.plausible) == ("recognised", ("box",))
+    assert "one touch across an edge" not in rec.reason
