@@ -112,3 +112,16 @@ def test_cli_says_the_best_model_is_not_named(small, tmp_path, capsys):
     assert code == 0
     assert "ambiguous: ellipsoid fits best, but one such touch cannot name it" in out
     assert "of the curves' half-length" in out
+
+
+def test_curves_too_noisy_to_meet_say_the_fits_ran_off_their_data():
+    # A 10 mm capsule (metres) touched with +-1 mm noise: the curve fits, their windows
+    # shrunk by the noise, are carried past their data and "meet" 0.46 m apart, farther
+    # than any sample lies from the common point (6 mm): the message says so.
+    capsule = trimesh.creation.capsule(height=0.02, radius=0.005, count=[48, 48])
+    touch = meshrec.simulate_touch(capsule, rng=0).touch
+    with pytest.raises(ValueError, match="the curve fits run off their data"):
+        meshrec.estimate_local_geometry(touch.curves)
+    # the same touch with little noise has a common point
+    quiet = meshrec.simulate_touch(capsule, rng=0, noise=1e-5).touch
+    assert meshrec.estimate_local_geometry(quiet.curves).half_length > 0

@@ -603,9 +603,19 @@ def _check_meet(
         if d > worst:
             worst, wi, wj = d, i, j
     if not worst <= allowed:
+        reach = max(float(np.max(np.linalg.norm(c - p, axis=1))) for c in curves)
+        hint = ""
+        if worst > reach:
+            # Farther apart than any sample lies from p: the fitted curves were carried
+            # past their data (a window shrunk to a few samples by noise that turns the
+            # curve at every step), not two curves that miss each other.
+            hint = (
+                f"; that is farther than any sample lies from p ({reach:.3g}): the curve fits "
+                "run off their data, and the samples may be too noisy for curves this short"
+            )
         raise ValueError(
             f"the curves do not meet at a common point: curves[{wi}] and curves[{wj}] pass "
-            f"{worst:.3g} apart where they come closest, {why}"
+            f"{worst:.3g} apart where they come closest, {why}{hint}"
         )
 
 
