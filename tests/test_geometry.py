@@ -355,6 +355,43 @@ def test_noisy_curves_accuracy(name):
     assert 0.7 < g.fit_to_noise < 1.5
 
 
+def _noise_in_directions(surface: Surface, curves, seed: int, sigma: float, along: str):
+    """Gaussian noise of deviation sigma along each sample's surface normal, or in a random
+    direction of its tangent plane (``along`` = "normal" or "tangent")."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for c in curves:
+        grads = np.array([surface.grad(x) for x in c])
+        normals = grads / np.linalg.norm(grads, axis=1)[:, None]
+        if along == "normal":
+            dirs = normals
+        else:
+            r = rng.normal(size=c.shape)
+            r -= np.sum(r * normals, axis=1)[:, None] * normals
+            dirs = r / np.linalg.norm(r, axis=1)[:, None]
+        out.append(c + rng.normal(0.0, sigma, size=(len(c), 1)) * dirs)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(SURFACES))
+def test_noise_estimates_are_along_the_normal(name):
+    # The scores compare point-to-surface distances, which see only the noise along the
+    # normal, with these estimates: a probe whose error lies along the normal must read
+    # its whole deviation (not sigma / sqrt(3) per coordinate), and error within the
+    # tangent plane must read (nearly) none.
+    s = SURFACES[name]
+    sigma = 1e-3
+    for along, lo, hi in (("normal", 0.85, 1.15), ("tangent", 0.0, 0.3)):
+        fits, thirds = [], []
+        for seed in range(10):
+            curves = _noise_in_directions(s, clean_curves(name), seed, sigma, along)
+            g = estimate_local_geometry(curves, normal=s.normal())
+            fits.append(g.fit_rms / sigma)
+            thirds.append(g.noise_rms / sigma)
+        assert lo <= np.median(fits) <= hi, (along, fits)
+        assert lo <= np.median(thirds) <= hi, (along, thirds)
+
+
 def test_sphere_sign_convention_and_umbilic():
     s = SURFACES["small_sphere"]  # radius 0.5
     g = estimate_local_geometry(clean_curves("small_sphere"), normal=s.normal())

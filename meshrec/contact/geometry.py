@@ -113,10 +113,14 @@ class LocalGeometry:
     normal_curvatures : (c,) float64
         Normal curvature kn_i = -kappa_i . N of each curve at p.
     fit_rms : float
-        Root-mean-square residual of the curve fits, data units: over all fitted samples
-        and the two residual components across the fitted curve, with the degrees of
-        freedom of the fits taken off. It estimates the standard deviation of the data
-        noise per coordinate (uniform noise of half-width e gives about e / sqrt(3)).
+        Root-mean-square residual of the curve fits along the surface normal, data units:
+        over all fitted samples, the residual across the fitted curve projected on the
+        surface normal there (the direction perpendicular to the curve closest to N), with
+        the degrees of freedom of the fits taken off. It estimates the standard deviation
+        of the data noise along the normal, the part that a point-to-surface distance
+        sees: for isotropic noise the deviation per coordinate (uniform noise of
+        half-width e gives about e / sqrt(3)); for a probe whose error lies along the
+        normal, that error's whole deviation.
     half_length : float
         Median over the curves of the arc length from p to the curve's farther end, data
         units (measured along the smoothed samples, so that noise does not lengthen it).
@@ -125,10 +129,11 @@ class LocalGeometry:
         (cos^2, 2 cos sin, sin^2) of each tangent's angle: sqrt(2) for three tangents 60
         degrees apart, 68 for 0, 10, 20 degrees; large means nearly parallel tangents.
     noise_rms : float
-        The data noise per coordinate estimated without any model of the shape, from the
-        third differences d of consecutive samples along each curve: sqrt(mean(d^2) / 20)
-        (independent noise of deviation s gives E[d^2] = 20 s^2; a smooth curve sampled
-        finely adds little). Compare ``fit_rms``: see :attr:`fit_to_noise`.
+        The data noise along the surface normal estimated without any model of the shape,
+        from the third differences d of consecutive samples along each curve, each taken
+        along the surface normal at its samples: sqrt(mean(d^2) / 20) (independent noise
+        of deviation s gives E[d^2] = 20 s^2; a smooth curve sampled finely adds little).
+        Compare ``fit_rms``: see :attr:`fit_to_noise`.
     """
 
     point: np.ndarray
@@ -201,15 +206,74 @@ def _order_ratio(points: np.ndarray) -> float:
     return float(np.median(step) / np.median(near))
 
 
-def _third_difference_noise(curves: list[np.ndarray]) -> float:
-    """Noise per coordinate from the third differences of the samples (see LocalGeometry).
+def _across_normals(tangents: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface normal along a curve, from the curve's tangents and the normal at p.
+
+    The surface normal at a sample is perpendicular to the curve's tangent there; of those
+    directions the one closest to ``n`` is taken: ``n - (n . t) t``, normalised. It is exact
+    for a normal section (a great circle of a sphere, any section of a cylinder through
+    its axis) and close wherever the normal turns little over the curve. Samples where the
+    curve runs within 60 degrees of ``n`` (around a rim) have no such direction to speak of
+    and are left out (``keep`` is False there).
+
+    Returns
+    -------
+    normals : (m, 3) float64
+        Unit normals (rows where ``keep`` is False are arbitrary).
+    keep : (m,) bool
+    """
+    v = n[None, :] - (tangents @ n)[:, None] * tangents
+    size = np.linalg.norm(v, axis=1)
+    keep = size > 0.5
+    return v / np.maximum(size, 1e-300)[:, None], keep
+
+
+def _normal_fit_rms(fits, n: np.ndarray, fallback: float) -> float:
+    """RMS of the curve-fit residuals along the surface normal (see LocalGeometry.fit_rms).
+
+    Each curve's fit takes ``n_coefficients`` degrees of freedom from the normal component
+    of its residuals, prorated over the samples kept (:func:`_across_normals`). Curves that
+    run along ``n`` everywhere leave nothing: then ``fallback`` (the per-coordinate
+    estimate) is returned.
+    """
+    sq, dof = 0.0, 0.0
+    for f in fits:
+        normals, keep = _across_normals(f.tangents, n)
+        m = len(f.residuals)
+        if not np.any(keep) or m <= f.n_coefficients:
+            continue
+        r = np.sum(f.residuals[keep] * normals[keep], axis=1)
+        sq += float(r @ r)
+        dof += np.count_nonzero(keep) * (m - f.n_coefficients) / m
+    return float(np.sqrt(sq / dof)) if dof > 0 else fallback
+
+
+def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
+    """Noise along the surface normal from the third differences of the samples (see
+    LocalGeometry.noise_rms).
 
     Hand-written: neither numpy nor scipy has a noise estimator for sampled curves; this
     is the classic difference-based one (the shape's part of a third difference shrinks
-    with the cube of the sample spacing, the noise's does not).
+    with the cube of the sample spacing, the noise's does not). Each difference is taken
+    along the surface normal at its samples (:func:`_across_normals`, the tangent from the
+    moving average of ``defaults.CURVE_PARAM_SMOOTHING`` samples); with none left, the
+    estimate per coordinate is returned.
     """
-    d = np.vstack([np.diff(c, n=3, axis=0) for c in curves])
-    return float(np.sqrt(np.mean(d * d) / 20.0))
+    parts, whole = [], []
+    k = defaults.CURVE_PARAM_SMOOTHING
+    for c in curves:
+        d = np.diff(c, n=3, axis=0)
+        whole.append(d)
+        q = _smoothed(c, k)
+        t = q[3:] - q[:-3]
+        t /= np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
+        normals, keep = _across_normals(t, n)
+        parts.append(np.sum(d[keep] * normals[keep], axis=1))
+    along = np.concatenate(parts)
+    if len(along) == 0:
+        d = np.vstack(whole)
+        return float(np.sqrt(np.mean(d * d) / 20.0))
+    return float(np.sqrt(np.mean(along * along) / 20.0))
 
 
 def _check_curves(curves) -> list[np.ndarray]:
@@ -333,6 +397,9 @@ class _CurveFit:
     sq_residual: float  # sum of squared residuals across the curve
     dof: int  # number of residual components minus number of coefficients
     half_length: float  # arc length (smoothed samples) from p to the farther end
+    residuals: np.ndarray  # (m, 3) residual of each fitted sample, across the fitted curve
+    tangents: np.ndarray  # (m, 3) unit tangent of the fitted curve at each fitted sample
+    n_coefficients: int  # polynomial coefficients per coordinate
 
 
 def _smoothed(points: np.ndarray, k: int) -> np.ndarray:
@@ -405,6 +472,9 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
         sq_residual=float(np.sum(resid**2)),
         dof=int(2 * (len(sw) - deg - 1)),
         half_length=float(max(-s[0], s[-1])),
+        residuals=resid,
+        tangents=tang,
+        n_coefficients=deg + 1,
     )
 
 
@@ -689,9 +759,11 @@ def estimate_local_geometry(
     kappas = np.array([f.curvature for f in fits])
     sq = sum(f.sq_residual for f in fits)
     dof = sum(f.dof for f in fits)
-    fit_rms = float(np.sqrt(sq / dof)) if dof > 0 else 0.0
+    coordinate_rms = float(np.sqrt(sq / dof)) if dof > 0 else 0.0
     half_length = float(np.median([f.half_length for f in fits]))
-    _check_meet(cs, fits, p, given=point is not None, half_length=half_length, fit_rms=fit_rms)
+    _check_meet(
+        cs, fits, p, given=point is not None, half_length=half_length, fit_rms=coordinate_rms
+    )
 
     # nearly parallel tangents
     worst = (np.inf, 0, 1)
@@ -759,10 +831,10 @@ def estimate_local_geometry(
         H=float(0.5 * (ll + nn)),
         tangents=tangents,
         normal_curvatures=kn,
-        fit_rms=fit_rms,
+        fit_rms=_normal_fit_rms(fits, n, coordinate_rms),
         half_length=half_length,
         condition=condition,
-        noise_rms=_third_difference_noise(cs),
+        noise_rms=_third_difference_noise(cs, n),
     )
     # orientation: the pre-flip normal is canonical (largest component positive)
     flip = float(n @ hint) < 0.0 if hint is not None else geom.H < 0.0

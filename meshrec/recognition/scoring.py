@@ -143,7 +143,7 @@ def _non_negative(value, name: str) -> float:
 
 
 def noise_estimate(fit_rms: float, noise_rms: float, half_length: float) -> float:
-    """The touch's noise level per coordinate, from the touch itself.
+    """The touch's noise level along the surface normal, from the touch itself.
 
     Two estimates come with the local geometry: the curve fits' RMS residual (inflated
     where the curves cross an edge: the polynomial cannot follow it) and the third
