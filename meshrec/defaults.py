@@ -48,6 +48,16 @@ MAX_EULER_CONDITION = 50.0
 #: cross an edge near p still gets a geometry (and its warnings); only tangents nearly
 #: along the fitted normal, where Euler's formula has no plane to be written in, stop.
 MAX_TANGENT_TILT_DEG = 75.0
+#: The noise estimates (LocalGeometry.fit_rms, noise_rms) are of the noise along the
+#: surface normal, the part a point-to-surface distance sees. Where the other components
+#: (across the curve in the tangent plane, and along it for third differences) show a
+#: variance within this factor of the normal one's, the noise is taken as isotropic and
+#: all components are pooled (the same expectation, with two to three times the data);
+#: otherwise the normal component alone is used. 1.7 is about the two-sided 99% range of
+#: the ratio of two such variance estimates from three 61-point curves (third
+#: differences are correlated: about n / 2.3 effective degrees of freedom); noise along
+#: the normal alone gives ratios of 100 and more.
+NOISE_ISOTROPY_MAX_RATIO = 1.7
 #: Samples on each side of the moving average whose chord lengths parametrise a curve fit.
 CURVE_PARAM_SMOOTHING = 3
 #: A curve fit stops where the curve turns more than this from its direction at p, degrees.

@@ -22,6 +22,7 @@ from meshrec.contact.geometry import (
     CommonPoint,
     LocalGeometry,
     _crossing_samples,
+    _normal_or_pooled,
     estimate_local_geometry,
     find_common_point,
 )
@@ -390,6 +391,20 @@ def test_noise_estimates_are_along_the_normal(name):
             thirds.append(g.noise_rms / sigma)
         assert lo <= np.median(fits) <= hi, (along, fits)
         assert lo <= np.median(thirds) <= hi, (along, thirds)
+
+
+def test_normal_and_other_components_are_pooled_only_when_they_agree():
+    limit = defaults.NOISE_ISOTROPY_MAX_RATIO
+    # variances 1.0 (normal, 100 dof) and 1.2 (the rest, 200 dof): pooled
+    assert _normal_or_pooled(100.0, 100, 240.0, 200, 9.0) == pytest.approx(np.sqrt(340 / 300))
+    # the normal variance beyond the limit either way: the normal one alone
+    assert _normal_or_pooled(100.0 * limit * 1.01, 100, 100.0, 100, 9.0) == pytest.approx(
+        np.sqrt(limit * 1.01)
+    )
+    assert _normal_or_pooled(100.0, 100, 100.0 * limit * 1.01, 100, 9.0) == pytest.approx(1.0)
+    # no other component, or no normal data
+    assert _normal_or_pooled(4.0, 1, 0.0, 2, 9.0) == pytest.approx(2.0)
+    assert _normal_or_pooled(0.0, 0, 5.0, 2, 9.0) == 9.0
 
 
 def test_sphere_sign_convention_and_umbilic():

@@ -120,7 +120,9 @@ class LocalGeometry:
         of the data noise along the normal, the part that a point-to-surface distance
         sees: for isotropic noise the deviation per coordinate (uniform noise of
         half-width e gives about e / sqrt(3)); for a probe whose error lies along the
-        normal, that error's whole deviation.
+        normal, that error's whole deviation. Where the component across the curve in the
+        tangent plane agrees with it (``defaults.NOISE_ISOTROPY_MAX_RATIO``), both are
+        pooled.
     half_length : float
         Median over the curves of the arc length from p to the curve's farther end, data
         units (measured along the smoothed samples, so that noise does not lengthen it).
@@ -132,7 +134,8 @@ class LocalGeometry:
         The data noise along the surface normal estimated without any model of the shape,
         from the third differences d of consecutive samples along each curve, each taken
         along the surface normal at its samples: sqrt(mean(d^2) / 20) (independent noise
-        of deviation s gives E[d^2] = 20 s^2; a smooth curve sampled finely adds little).
+        of deviation s gives E[d^2] = 20 s^2; a smooth curve sampled finely adds little);
+        pooled with the other two components where they agree, as for ``fit_rms``.
         Compare ``fit_rms``: see :attr:`fit_to_noise`.
     """
 
@@ -228,24 +231,46 @@ def _across_normals(tangents: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np
     return v / np.maximum(size, 1e-300)[:, None], keep
 
 
+def _normal_or_pooled(sq_normal, dof_normal, sq_rest, dof_rest, fallback: float) -> float:
+    """The noise's deviation along the normal, from squared residual components.
+
+    ``sq_normal`` over ``dof_normal`` estimates the variance along the normal, ``sq_rest``
+    over ``dof_rest`` that of the other components. Where the two agree within
+    ``defaults.NOISE_ISOTROPY_MAX_RATIO`` (isotropic noise) all are pooled; otherwise the
+    normal one alone is used. With no normal data, ``fallback``.
+    """
+    if not dof_normal > 0:
+        return fallback
+    normal = sq_normal / dof_normal
+    if dof_rest > 0 and sq_rest > 0.0:
+        ratio = normal / (sq_rest / dof_rest)
+        limit = defaults.NOISE_ISOTROPY_MAX_RATIO
+        if 1.0 / limit <= ratio <= limit:
+            return float(np.sqrt((sq_normal + sq_rest) / (dof_normal + dof_rest)))
+    return float(np.sqrt(normal))
+
+
 def _normal_fit_rms(fits, n: np.ndarray, fallback: float) -> float:
     """RMS of the curve-fit residuals along the surface normal (see LocalGeometry.fit_rms).
 
-    Each curve's fit takes ``n_coefficients`` degrees of freedom from the normal component
-    of its residuals, prorated over the samples kept (:func:`_across_normals`). Curves that
-    run along ``n`` everywhere leave nothing: then ``fallback`` (the per-coordinate
-    estimate) is returned.
+    Each curve's fit takes ``n_coefficients`` degrees of freedom from each component of
+    its residuals across the curve (along the normal, and across the curve in the tangent
+    plane), prorated over the samples kept (:func:`_across_normals`); the two are pooled
+    when they agree (:func:`_normal_or_pooled`). Curves that run along ``n`` everywhere
+    leave nothing: then ``fallback`` (the estimate over both components) is returned.
     """
-    sq, dof = 0.0, 0.0
+    sq, rest, dof = 0.0, 0.0, 0.0
     for f in fits:
         normals, keep = _across_normals(f.tangents, n)
         m = len(f.residuals)
         if not np.any(keep) or m <= f.n_coefficients:
             continue
-        r = np.sum(f.residuals[keep] * normals[keep], axis=1)
-        sq += float(r @ r)
+        r = f.residuals[keep]
+        along = np.sum(r * normals[keep], axis=1)
+        sq += float(along @ along)
+        rest += float(np.sum(r * r)) - float(along @ along)
         dof += np.count_nonzero(keep) * (m - f.n_coefficients) / m
-    return float(np.sqrt(sq / dof)) if dof > 0 else fallback
+    return _normal_or_pooled(sq, dof, max(rest, 0.0), dof, fallback)
 
 
 def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
@@ -256,10 +281,12 @@ def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
     is the classic difference-based one (the shape's part of a third difference shrinks
     with the cube of the sample spacing, the noise's does not). Each difference is taken
     along the surface normal at its samples (:func:`_across_normals`, the tangent from the
-    moving average of ``defaults.CURVE_PARAM_SMOOTHING`` samples); with none left, the
-    estimate per coordinate is returned.
+    moving average of ``defaults.CURVE_PARAM_SMOOTHING`` samples), and pooled with its
+    other two components when they agree (:func:`_normal_or_pooled`); with no difference
+    left, the estimate over all components is returned.
     """
-    parts, whole = [], []
+    sq, rest, count = 0.0, 0.0, 0
+    whole = []
     k = defaults.CURVE_PARAM_SMOOTHING
     for c in curves:
         d = np.diff(c, n=3, axis=0)
@@ -268,12 +295,13 @@ def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
         t = q[3:] - q[:-3]
         t /= np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
         normals, keep = _across_normals(t, n)
-        parts.append(np.sum(d[keep] * normals[keep], axis=1))
-    along = np.concatenate(parts)
-    if len(along) == 0:
-        d = np.vstack(whole)
-        return float(np.sqrt(np.mean(d * d) / 20.0))
-    return float(np.sqrt(np.mean(along * along) / 20.0))
+        along = np.sum(d[keep] * normals[keep], axis=1)
+        sq += float(along @ along)
+        rest += float(np.sum(d[keep] ** 2)) - float(along @ along)
+        count += int(np.count_nonzero(keep))
+    d = np.vstack(whole)
+    fallback = float(np.sqrt(np.mean(d * d) / 20.0))
+    return _normal_or_pooled(sq / 20.0, count, max(rest, 0.0) / 20.0, 2 * count, fallback)
 
 
 def _check_curves(curves) -> list[np.ndarray]:
