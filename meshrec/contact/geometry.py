@@ -214,8 +214,9 @@ def _across_normals(tangents: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np
 
     The surface normal at a sample is perpendicular to the curve's tangent there; of those
     directions the one closest to ``n`` is taken: ``n - (n . t) t``, normalised. It is exact
-    for a normal section (a great circle of a sphere, any section of a cylinder through
-    its axis) and close wherever the normal turns little over the curve. Samples where the
+    where the surface normal stays in the plane of ``n`` and the curve (a great circle
+    of a sphere, a cylinder's circle or ruling) and close wherever the normal turns
+    little over the curve. Samples where the
     curve runs within 60 degrees of ``n`` (around a rim) have no such direction to speak of
     and are left out (``keep`` is False there).
 
