@@ -58,6 +58,10 @@ MAX_TANGENT_TILT_DEG = 75.0
 #: differences are correlated: about n / 2.3 effective degrees of freedom); noise along
 #: the normal alone gives ratios of 100 and more.
 NOISE_ISOTROPY_MAX_RATIO = 1.7
+#: ... the normal at a sample is taken perpendicular to the curve there, closest to the
+#: normal at p; samples where the curve runs within this angle of the normal at p
+#: (around a rim) have none to speak of and are left out of both estimates, degrees.
+NOISE_MIN_TANGENT_NORMAL_ANGLE_DEG = 30.0
 #: Samples on each side of the moving average whose chord lengths parametrise a curve fit.
 CURVE_PARAM_SMOOTHING = 3
 #: A curve fit stops where the curve turns more than this from its direction at p, degrees.

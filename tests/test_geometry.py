@@ -21,6 +21,7 @@ from meshrec import defaults
 from meshrec.contact.geometry import (
     CommonPoint,
     LocalGeometry,
+    _across_normals,
     _crossing_samples,
     _normal_or_pooled,
     estimate_local_geometry,
@@ -391,6 +392,20 @@ def test_noise_estimates_are_along_the_normal(name):
             thirds.append(g.noise_rms / sigma)
         assert lo <= np.median(fits) <= hi, (along, fits)
         assert lo <= np.median(thirds) <= hi, (along, thirds)
+
+
+def test_the_normal_along_a_curve_is_perpendicular_to_it_and_closest_to_n():
+    n = np.array([0.0, 0.0, 1.0])
+    limit = defaults.NOISE_MIN_TANGENT_NORMAL_ANGLE_DEG
+    angles = np.radians([90.0, 60.0, limit + 1.0, limit - 1.0, 0.0])  # tangent from n
+    t = np.column_stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)])
+    normals, keep = _across_normals(t, n)
+    assert keep.tolist() == [True, True, True, False, False]
+    # unit, perpendicular to the tangent, and in the plane of n and the tangent
+    assert np.allclose(np.linalg.norm(normals[keep], axis=1), 1.0)
+    assert np.allclose(np.sum(normals[keep] * t[keep], axis=1), 0.0)
+    assert np.allclose(normals[keep][:, 1], 0.0)
+    assert np.all(normals[keep] @ n > 0.0)
 
 
 def test_normal_and_other_components_are_pooled_only_when_they_agree():

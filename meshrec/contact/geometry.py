@@ -216,9 +216,9 @@ def _across_normals(tangents: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np
     directions the one closest to ``n`` is taken: ``n - (n . t) t``, normalised. It is exact
     where the surface normal stays in the plane of ``n`` and the curve (a great circle
     of a sphere, a cylinder's circle or ruling) and close wherever the normal turns
-    little over the curve. Samples where the
-    curve runs within 60 degrees of ``n`` (around a rim) have no such direction to speak of
-    and are left out (``keep`` is False there).
+    little over the curve. Samples where the curve runs within
+    ``defaults.NOISE_MIN_TANGENT_NORMAL_ANGLE_DEG`` of ``n`` (around a rim) have no such
+    direction to speak of and are left out (``keep`` is False there).
 
     Returns
     -------
@@ -228,7 +228,7 @@ def _across_normals(tangents: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np
     """
     v = n[None, :] - (tangents @ n)[:, None] * tangents
     size = np.linalg.norm(v, axis=1)
-    keep = size > 0.5
+    keep = size > np.sin(np.radians(defaults.NOISE_MIN_TANGENT_NORMAL_ANGLE_DEG))
     return v / np.maximum(size, 1e-300)[:, None], keep
 
 
