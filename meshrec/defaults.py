@@ -10,6 +10,9 @@ are unit-sized, the bundled experiment objects are in millimetres).
 SIM_POINTS = 61
 #: Half-width of the uniform noise added to every coordinate, model units.
 SIM_NOISE = 1e-3
+#: Directions of the simulated noise: "isotropic" (every coordinate, the paper's) or
+#: "normal" (along the smooth surface normal at each sample only, as most probes err).
+SIM_NOISE_DIRECTIONS = ("isotropic", "normal")
 #: Length of each simulated curve as a fraction of sqrt(surface area) of the model.
 #: On the bundled paper surfaces this gives curves about 0.6 long, as in the paper's figures.
 SIM_LENGTH_FRACTION = 0.22

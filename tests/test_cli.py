@@ -303,3 +303,13 @@ def test_commands_start_one_blas_thread_unless_told(command, preset, want):
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
     )
     assert done.stdout.strip() == str(want)
+
+
+def test_simulate_with_noise_along_the_normal(tmp_path, capsys):
+    touch, truth = tmp_path / "t.csv", tmp_path / "truth.json"
+    args = ["simulate", "ellipsoid", "-o", str(touch), "--truth", str(truth), "--seed", "3"]
+    assert main([*args, "--noise-direction", "normal"]) == 0
+    assert "noise along the normal" in capsys.readouterr().out
+    assert json.loads(truth.read_text())["noise_direction"] == "normal"
+    assert main([*args, "--noise-direction", "sideways"]) == 2
+    assert "invalid choice: 'sideways'" in capsys.readouterr().err

@@ -188,6 +188,45 @@ def test_noise_is_uniform_within_bounds(sphere):
     assert np.ptp(copies, axis=0).max() > 0
 
 
+def test_noise_along_the_normal_is_radial_on_a_sphere(sphere, tmp_path):
+    # The smooth normal of a fine icosphere is radial: each sample moves along its own
+    # radius, by at most the noise, and by (nearly) nothing across it.
+    noise = 0.01
+    sim = simulate_touch(sphere, rng=7, noise=noise, transform=False, noise_direction="normal")
+    assert sim.noise_direction == "normal"
+    clean = np.vstack(sim.clean_curves)
+    delta = np.vstack(sim.touch.curves) - clean
+    radial = clean / np.linalg.norm(clean, axis=1)[:, None]
+    along = np.sum(delta * radial, axis=1)
+    across = delta - along[:, None] * radial
+    assert np.all(np.abs(along) <= noise)
+    assert np.abs(along).max() > 0.9 * noise
+    assert np.linalg.norm(across, axis=1).max() < 0.01 * noise
+    # recorded in the truth file, and read back
+    sim.write(tmp_path / "t.csv", tmp_path / "truth.json")
+    assert read_truth(tmp_path / "truth.json").noise_direction == "normal"
+    assert "noise along the normal" in repr(sim)
+
+
+def test_isotropic_noise_is_the_default_and_not_recorded(sphere):
+    default = simulate_touch(sphere, rng=7, noise=0.01)
+    isotropic = simulate_touch(sphere, rng=7, noise=0.01, noise_direction="isotropic")
+    for a, b in zip(default.touch.curves, isotropic.touch.curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert "noise_direction" not in default.truth_dict()
+    assert default.truth.noise_direction is None
+
+
+def test_noise_direction_is_checked(sphere):
+    with pytest.raises(ValueError, match="noise_direction must be one of"):
+        simulate_touch(sphere, rng=7, noise_direction="sideways")
+    with pytest.raises(TypeError, match="noise_direction"):
+        simulate_touch(sphere, rng=7, noise_direction=3)
+    truth = simulate_touch(sphere, rng=7).truth_dict()
+    with pytest.raises(ValueError, match=r"truth\['noise_direction'\]"):
+        Truth.from_dict({**truth, "noise_direction": "sideways"})
+
+
 def test_transform_maps_back_to_the_clean_curves(sphere):
     noise = 1e-3
     sim = simulate_touch(sphere, rng=8, noise=noise)

@@ -166,6 +166,12 @@ def _parser() -> argparse.ArgumentParser:
         metavar="R",
         help="ball-tip radius (model units): write the ball's centres, not surface points",
     )
+    s.add_argument(
+        "--noise-direction",
+        choices=defaults.SIM_NOISE_DIRECTIONS,
+        default="isotropic",
+        help="the noise on every coordinate (isotropic, default) or along the normal only",
+    )
     add_viz_parsers(sub, models_arg, touch_arg)
     add_advice_parser(sub, models_arg, touch_arg)
     add_serve_parser(sub, models_arg)

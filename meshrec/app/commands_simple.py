@@ -97,6 +97,7 @@ def run_simulate(args, out) -> int:
             noise=args.noise,
             length=args.length,
             probe_radius=args.probe_radius,
+            noise_direction=args.noise_direction,
         )
     except ValueError as exc:
         # The message names the API's argument: name the option instead.
@@ -114,6 +115,7 @@ def run_simulate(args, out) -> int:
         f"wrote {one_line(args.output)}: {len(sim.touch.curves)} curves x {args.points} "
         f"points on {one_line(sim.model)}, true contact {c}"
         + (f", ball centres of a tip of radius {sim.probe_radius:g}" if sim.probe_radius else "")
+        + (", noise along the normal" if sim.noise_direction == "normal" else "")
         + f"; {truth}\n"
     )
     return 0

@@ -7,7 +7,8 @@ search`` read it to draw the true curves and contact. The file is one JSON objec
      "T_touch_model": 4x4, "T_model_touch": 4x4, "contact_touch": [x, y, z],
      "noise": 0.001, "length": 0.61, "points": 61, "seed": 24}
 
-(plus ``"probe_radius": r`` for a touch simulated with a ball tip of radius r)
+(plus ``"probe_radius": r`` for a touch simulated with a ball tip of radius r, and
+``"noise_direction": "normal"`` for noise along the normal only)
 
 where ``contact`` and ``normal`` are in model coordinates and ``T_model_touch`` maps touch
 points onto the model. Only ``contact`` and ``T_model_touch`` are required on reading.
@@ -22,7 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshrec import defaults
-from meshrec.io.checks import check_int, check_number, check_transform, check_vector, one_line
+from meshrec.io.checks import (
+    check_choice,
+    check_int,
+    check_number,
+    check_transform,
+    check_vector,
+    one_line,
+)
 from meshrec.io.files import read_text, write_atomic
 
 __all__ = ["Truth", "read_truth", "write_truth"]
@@ -66,6 +74,9 @@ class Truth:
         The seed that reproduces the touch.
     probe_radius : float or None
         The radius of the simulated probe's ball tip, model units (None: a point probe).
+    noise_direction : str or None
+        One of ``defaults.SIM_NOISE_DIRECTIONS`` ("normal": the noise along the normal
+        only); None: not recorded (isotropic).
 
     Raises
     ------
@@ -83,6 +94,7 @@ class Truth:
     points: int | None = None
     seed: int | None = None
     probe_radius: float | None = None
+    noise_direction: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.model, str):
@@ -114,6 +126,8 @@ class Truth:
         for key in ("points", "seed"):
             if getattr(self, key) is not None:
                 object.__setattr__(self, key, check_int(getattr(self, key), key, minimum=0))
+        if self.noise_direction is not None:
+            check_choice(self.noise_direction, defaults.SIM_NOISE_DIRECTIONS, "noise_direction")
 
     @property
     def contact_touch(self) -> np.ndarray:
@@ -147,6 +161,11 @@ class Truth:
             "points": self.points,
             "seed": self.seed,
             **({} if self.probe_radius is None else {"probe_radius": self.probe_radius}),
+            **(
+                {}
+                if self.noise_direction is None
+                else {"noise_direction": self.noise_direction}
+            ),
         }
 
     @classmethod
@@ -157,8 +176,9 @@ class Truth:
         ----------
         data : Mapping
             With at least ``contact`` and ``T_model_touch``; ``model``,
-            ``T_touch_model``, ``normal``, ``noise``, ``length``, ``points``, ``seed`` and
-            ``probe_radius`` are optional; the derived ``contact_touch`` is ignored.
+            ``T_touch_model``, ``normal``, ``noise``, ``length``, ``points``, ``seed``,
+            ``probe_radius`` and ``noise_direction`` are optional; the derived
+            ``contact_touch`` is ignored.
         where : str
             The name of ``data`` in messages.
 
@@ -199,6 +219,7 @@ class Truth:
             ("points", lambda v, n: check_int(v, n, minimum=0)),
             ("seed", lambda v, n: check_int(v, n, minimum=0)),
             ("probe_radius", lambda v, n: check_number(v, n, minimum=0.0)),
+            ("noise_direction", lambda v, n: check_choice(v, defaults.SIM_NOISE_DIRECTIONS, n)),
         ):
             if data.get(key) is not None:
                 try:

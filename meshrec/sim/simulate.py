@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
 from meshrec.io.checks import (
+    check_choice,
     check_int,
     check_number,
     check_points,
@@ -76,7 +77,8 @@ class SimulatedTouch:
         The noiseless curves in model coordinates, each ordered along the curve; the
         middle row of each is ``contact``.
     noise : float
-        Half-width of the uniform noise that was added to every coordinate.
+        Half-width of the uniform noise that was added to every coordinate (or, with
+        ``noise_direction`` "normal", along the normal).
     length : float
         Arc length of each curve, model units.
     seed : int or None
@@ -87,6 +89,9 @@ class SimulatedTouch:
         curves are the ball's centres: ``clean_curves`` lie on the surface offset
         outwards by it, and their middle rows are ``contact + probe_radius * normal``
         (``normal`` there the smooth normal).
+    noise_direction : str
+        "isotropic" (the noise on every coordinate) or "normal" (along the smooth normal
+        at each sample only).
     """
 
     touch: TouchData
@@ -100,6 +105,7 @@ class SimulatedTouch:
     length: float
     seed: int | None
     probe_radius: float = 0.0
+    noise_direction: str = "isotropic"
 
     @property
     def n_points(self) -> int:
@@ -130,6 +136,7 @@ class SimulatedTouch:
             points=int(self.n_points),
             seed=self.seed,
             probe_radius=self.probe_radius or None,
+            noise_direction=None if self.noise_direction == "isotropic" else self.noise_direction,
         )
 
     def truth_dict(self) -> dict:
@@ -141,8 +148,9 @@ class SimulatedTouch:
             Keys ``model`` (str), ``contact``, ``normal`` (model frame, lists of 3 floats),
             ``T_touch_model``, ``T_model_touch`` (4x4 nested lists), ``contact_touch``
             (list of 3 floats), ``noise``, ``length`` (float), ``points`` (int, points
-            per curve), ``seed`` (int or None) and, with a ball tip, ``probe_radius``
-            (float): :meth:`Truth.to_dict` of :attr:`truth`.
+            per curve), ``seed`` (int or None), with a ball tip ``probe_radius`` (float)
+            and with noise along the normal ``noise_direction`` ("normal"):
+            :meth:`Truth.to_dict` of :attr:`truth`.
         """
         return self.truth.to_dict()
 
@@ -187,7 +195,8 @@ class SimulatedTouch:
             f"SimulatedTouch(model={self.model!r}, {len(self.clean_curves)} curves x "
             f"{self.n_points} points, contact={np.round(self.contact, 6).tolist()}, "
             f"length={self.length:.6g}, noise={self.noise:g}, seed={self.seed}"
-            + (f", probe_radius={self.probe_radius:g})" if self.probe_radius else ")")
+            + (f", probe_radius={self.probe_radius:g}" if self.probe_radius else "")
+            + (", noise along the normal)" if self.noise_direction == "normal" else ")")
         )
 
 
@@ -203,6 +212,7 @@ def simulate_touch(
     transform: bool = True,
     name: str | None = None,
     probe_radius: float = 0.0,
+    noise_direction: str = "isotropic",
 ) -> SimulatedTouch:
     """Simulate a touch: three noisy curves on a mesh through one contact point.
 
@@ -213,8 +223,9 @@ def simulate_touch(
     ``defaults.SIM_MIN_PLANE_ANGLE_DEG`` apart. The connected piece of each section
     through ``c`` is resampled at ``n_points`` equal arc-length steps over ``length``,
     centred on ``c`` (the middle sample is ``c``). Uniform noise in ``[-noise, noise]`` is
-    added to every coordinate (in the model frame, independently per curve) and the curves
-    are then moved by a random rigid motion.
+    added to every coordinate (in the model frame, independently per curve), or only along
+    the smooth normal at each sample, and the curves are then moved by a random rigid
+    motion.
 
     Parameters
     ----------
@@ -249,6 +260,10 @@ def simulate_touch(
         face), onto the offset surface, before the noise. Random contacts where the ball
         could not touch the curves (it would cut into the mesh: a concavity tighter
         than the tip) are redrawn.
+    noise_direction : {"isotropic", "normal"}
+        "isotropic" (default, the paper's): the noise on every coordinate. "normal": one
+        uniform value in ``[-noise, noise]`` per sample, along the smooth normal there
+        (as above), as a probe that errs along its approach measures.
 
     Returns
     -------
@@ -260,8 +275,8 @@ def simulate_touch(
         If ``mesh`` is neither a mesh, a path nor an object with vertices and faces (real
         (V, 3) vertices, integer faces), or ``n_points`` is not an integer, ``noise`` or
         ``length`` not a real number, ``contact`` not real numbers, ``rng`` neither a
-        Generator, an integer nor None, ``transform`` not a bool or ``name`` not a str
-        (the shared checks of :mod:`meshrec.io.checks`).
+        Generator, an integer nor None, ``transform`` not a bool, ``name`` or
+        ``noise_direction`` not a str (the shared checks of :mod:`meshrec.io.checks`).
     ValueError
         If ``n_points`` is not odd or not in 5..``defaults.SIM_MAX_POINTS``, ``noise`` is
         negative, not finite or more than ``defaults.SIM_MAX_NOISE_FRACTION *
@@ -275,7 +290,8 @@ def simulate_touch(
         ``defaults.SIM_MAX_TRIES`` admits curves of that length; ``probe_radius`` is
         negative or not finite, or the ball cannot trace the curves through a given
         contact (or any random one): it would cut into the mesh (the tip is larger than
-        the radius of a concave part there).
+        the radius of a concave part there); ``noise_direction`` is not one of
+        ``defaults.SIM_NOISE_DIRECTIONS``.
     """
     n_points = _check_n_points(n_points)
     noise = check_number(noise, "noise", minimum=0.0)
@@ -288,6 +304,9 @@ def simulate_touch(
     if name is not None and not isinstance(name, str):
         raise TypeError(f"name must be a str, got {type(name).__name__}")
     probe_radius = check_number(probe_radius, "probe_radius", minimum=0.0)
+    noise_direction = check_choice(
+        noise_direction, defaults.SIM_NOISE_DIRECTIONS, "noise_direction"
+    )
     generator, seed = _make_rng(rng)
 
     tm, model_name = _resolve_mesh(mesh)
@@ -345,7 +364,15 @@ def simulate_touch(
                 f"that long (last: {failure}); give a smaller length"
             )
 
-    noisy = [cv + generator.uniform(-noise, noise, size=cv.shape) for cv in curves]
+    if noise_direction == "normal":
+        normals = _smooth_normals(surface, np.vstack(curves))
+        offsets = generator.uniform(-noise, noise, size=(len(normals), 1)) * normals
+        noisy, start = [], 0
+        for cv in curves:
+            noisy.append(cv + offsets[start : start + len(cv)])
+            start += len(cv)
+    else:
+        noisy = [cv + generator.uniform(-noise, noise, size=cv.shape) for cv in curves]
 
     T = _random_rigid(generator, scale) if transform else np.eye(4)
     T_inv = np.eye(4)
@@ -367,6 +394,7 @@ def simulate_touch(
         length=float(length),
         seed=seed,
         probe_radius=probe_radius,
+        noise_direction=noise_direction,
     )
 
 
@@ -710,6 +738,22 @@ def _section_curve(
     return curve, None
 
 
+def _smooth_normals(surface: _Surface, points: np.ndarray) -> np.ndarray:
+    """(n, 3) unit smooth normals at the mesh's closest points to ``points``: the blend of
+    the mesh's vertex normals (trimesh's, area-weighted) by the closest point's barycentric
+    coordinates in its face (libigl)."""
+    V, F = surface.vertices, surface.faces
+    _, face, closest = igl.point_mesh_squared_distance(points, V, F)
+    tri = V[F[face]]
+    w = igl.barycentric_coordinates(
+        np.ascontiguousarray(closest), tri[:, 0].copy(), tri[:, 1].copy(), tri[:, 2].copy()
+    )
+    w = np.clip(np.nan_to_num(w), 0.0, None)
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+    normals = np.einsum("ni,nij->nj", w, np.asarray(surface.mesh.vertex_normals)[F[face]])
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
 def _ball_centres(
     surface: _Surface, curves: list[np.ndarray], radius: float
 ) -> tuple[list[np.ndarray] | None, str | None]:
@@ -729,16 +773,7 @@ def _ball_centres(
         return curves, None
     stacked = np.vstack(curves)
     V, F = surface.vertices, surface.faces
-    _, face, closest = igl.point_mesh_squared_distance(stacked, V, F)
-    tri = V[F[face]]
-    w = igl.barycentric_coordinates(
-        np.ascontiguousarray(closest), tri[:, 0].copy(), tri[:, 1].copy(), tri[:, 2].copy()
-    )
-    w = np.clip(np.nan_to_num(w), 0.0, None)
-    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
-    normals = np.einsum("ni,nij->nj", w, np.asarray(surface.mesh.vertex_normals)[F[face]])
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    moved = stacked + radius * normals
+    moved = stacked + radius * _smooth_normals(surface, stacked)
     sq, _, _ = igl.point_mesh_squared_distance(moved, V, F)
     gap = float(np.sqrt(np.maximum(sq, 0.0)).min())
     if gap < 0.99 * radius:
