@@ -287,11 +287,9 @@ def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
     left, the estimate over all components is returned.
     """
     sq, rest, count = 0.0, 0.0, 0
-    whole = []
     k = defaults.CURVE_PARAM_SMOOTHING
     for c in curves:
         d = np.diff(c, n=3, axis=0)
-        whole.append(d)
         q = _smoothed(c, k)
         t = q[3:] - q[:-3]
         t /= np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
@@ -300,9 +298,10 @@ def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
         sq += float(along @ along)
         rest += float(np.sum(d[keep] ** 2)) - float(along @ along)
         count += int(np.count_nonzero(keep))
-    d = np.vstack(whole)
-    fallback = float(np.sqrt(np.mean(d * d) / 20.0))
-    return _normal_or_pooled(sq / 20.0, count, max(rest, 0.0) / 20.0, 2 * count, fallback)
+    if count == 0:
+        d = np.vstack([np.diff(c, n=3, axis=0) for c in curves])
+        return float(np.sqrt(np.mean(d * d) / 20.0))
+    return _normal_or_pooled(sq / 20.0, count, max(rest, 0.0) / 20.0, 2 * count, 0.0)
 
 
 def _check_curves(curves) -> list[np.ndarray]:

@@ -365,12 +365,10 @@ def simulate_touch(
             )
 
     if noise_direction == "normal":
-        normals = _smooth_normals(surface, np.vstack(curves))
+        stacked = np.vstack(curves)
+        normals = _smooth_normals(surface, stacked)
         offsets = generator.uniform(-noise, noise, size=(len(normals), 1)) * normals
-        noisy, start = [], 0
-        for cv in curves:
-            noisy.append(cv + offsets[start : start + len(cv)])
-            start += len(cv)
+        noisy = _split_like(stacked + offsets, curves)
     else:
         noisy = [cv + generator.uniform(-noise, noise, size=cv.shape) for cv in curves]
 
@@ -738,6 +736,11 @@ def _section_curve(
     return curve, None
 
 
+def _split_like(stacked: np.ndarray, curves: list[np.ndarray]) -> list[np.ndarray]:
+    """``stacked`` (the curves' rows, one after another) cut back into curves."""
+    return np.split(stacked, np.cumsum([len(cv) for cv in curves])[:-1])
+
+
 def _smooth_normals(surface: _Surface, points: np.ndarray) -> np.ndarray:
     """(n, 3) unit smooth normals at the mesh's closest points to ``points``: the blend of
     the mesh's vertex normals (trimesh's, area-weighted) by the closest point's barycentric
@@ -781,11 +784,7 @@ def _ball_centres(
             f"a ball of radius {radius:g} touching the curves comes within {gap:.3g} of the "
             "mesh elsewhere (a concavity tighter than the tip)"
         )
-    out, start = [], 0
-    for cv in curves:
-        out.append(moved[start : start + len(cv)])
-        start += len(cv)
-    return out, None
+    return _split_like(moved, curves), None
 
 
 def _opposite_pair(nodes: list[np.ndarray], start: int, neighbours: list[int]) -> list[int]:
