@@ -313,3 +313,32 @@ def test_simulate_with_noise_along_the_normal(tmp_path, capsys):
     assert json.loads(truth.read_text())["noise_direction"] == "normal"
     assert main([*args, "--noise-direction", "sideways"]) == 2
     assert "invalid choice: 'sideways'" in capsys.readouterr().err
+
+
+def test_python_dash_m_runs_the_command_line(tmp_path):
+    # ``python -m meshrec`` is the console script's twin: the same help, the same exit
+    # status for bad input (a touch file that does not exist: 2, one line on stderr)
+    env = dict(os.environ, MESHREC_CACHE_DIR=str(tmp_path / "cache"))
+    helped = subprocess.run(
+        [sys.executable, "-m", "meshrec", "--help"], capture_output=True, text=True, env=env
+    )
+    assert helped.returncode == 0
+    assert "usage: meshrec" in helped.stdout
+    assert "next-touch" in helped.stdout
+    bad = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "meshrec",
+            "recognize",
+            str(tmp_path / "missing.csv"),
+            "--models",
+            "surfaces",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert bad.returncode == 2
+    assert "missing.csv" in bad.stderr
+    assert "Traceback" not in bad.stderr
