@@ -67,6 +67,15 @@ NOISE_ISOTROPY_MAX_RATIO = 1.7
 NOISE_MIN_TANGENT_NORMAL_ANGLE_DEG = 30.0
 #: Samples on each side of the moving average whose chord lengths parametrise a curve fit.
 CURVE_PARAM_SMOOTHING = 3
+#: ... at least; more on densely sampled curves: the moving average widens until the noise
+#: left in a chord across it is at most this fraction of the chord (3 coordinates of noise
+#: sigma, estimated from the third differences, over 2k + 1 samples: sigma sqrt(6 / (2k + 1))
+#: against 2k sample spacings). Otherwise, with samples much closer together than the noise
+#: (a probe logging 5,000 points along 0.3 at noise 0.002), the chords are noise, the fit
+#: window collapses and the curvature is nonsense (K = -1.7e7 on the ellipsoid, measured).
+#: At 0.25 every protocol of 61 points per curve keeps 3 (the worst, curves 0.2 long at
+#: noise 0.004, has 0.11).
+CURVE_PARAM_MAX_NOISE_CHORD = 0.25
 #: A curve fit stops where the curve turns more than this from its direction at p, degrees.
 CURVE_FIT_MAX_TURN_DEG = 75.0
 #: A curve whose consecutive samples are (median) more than this many times farther apart

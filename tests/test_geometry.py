@@ -841,3 +841,50 @@ def test_crossing_search_is_fast_on_long_curves():
     seconds = time.perf_counter() - start
     np.testing.assert_allclose(best, np.tile([0.0, 0.0, 1.0], (3, 1)), atol=1e-4)
     assert seconds < 2.0, seconds
+
+
+# --------------------------------------------------------------------------------------------
+# densely sampled curves: samples much closer together than the noise
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("n", "seed"), [(2001, 0), (4999, 1), (9999, 2)])
+@pytest.mark.parametrize("along", ["isotropic", "normal"])
+def test_dense_noisy_curves_give_the_sphere(n, seed, along):
+    # a probe logging thousands of points: 0.6 long arcs, samples 0.0003 to 0.00006 apart
+    # against noise +-0.002. The fit window used to collapse to five samples (the chords
+    # between neighbours were noise): K = -1.7e7 on the ellipsoid, and "the curves do not
+    # meet" at 9999 points. The unit sphere: K = 1, H = 1 (outward normal), noise sigma
+    # 0.002 / sqrt(3) per coordinate, or that along the normal
+    noise = 0.002
+    curves = _dense_sphere_curves(n, seed, noise=0.0)
+    rng = np.random.default_rng(100 + seed)
+    if along == "isotropic":
+        curves = [c + rng.uniform(-noise, noise, c.shape) for c in curves]
+    else:
+        curves = [c * (1.0 + rng.uniform(-noise, noise, (len(c), 1))) for c in curves]
+    g = estimate_local_geometry(curves, normal=[0.0, 0.0, 1.0])
+    assert abs(g.K - 1.0) < 0.1
+    assert abs(g.H - 1.0) < 0.05
+    assert angle_deg(g.normal, [0.0, 0.0, 1.0]) < 0.5
+    assert g.noise_rms == pytest.approx(noise / np.sqrt(3), rel=0.15)
+    assert g.fit_rms == pytest.approx(noise / np.sqrt(3), rel=0.15)
+
+
+@pytest.mark.parametrize(
+    ("n", "length", "noise"),
+    [(61, 0.3, 0.002), (61, 0.2, 0.004), (301, 0.3, 0.002), (61, 0.3, 0.0)],
+)
+def test_the_usual_curves_keep_the_narrow_moving_average(n, length, noise):
+    # the moving average widens only where the samples crowd the noise: the protocols the
+    # probabilities were calibrated on (61 points, noise up to 0.004 on 0.2) keep
+    # defaults.CURVE_PARAM_SMOOTHING, so their fits are bit for bit as before
+    from meshrec.contact.geometry import _smoothing_width
+
+    rng = np.random.default_rng(5)
+    t = np.linspace(-length / 2, length / 2, n)[:, None]
+    arc = np.cos(t) * [0.0, 0.0, 1.0] + np.sin(t) * [1.0, 0.0, 0.0]
+    arc = arc + rng.uniform(-noise, noise, arc.shape)
+    assert _smoothing_width(arc) == defaults.CURVE_PARAM_SMOOTHING
+    assert (
+        _smoothing_width(_dense_sphere_curves(4999, 0, noise=0.002)[0])
+        > 2 * defaults.CURVE_PARAM_SMOOTHING
+    )

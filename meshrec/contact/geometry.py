@@ -21,7 +21,8 @@ of a lightly smoothed copy of the samples (centred moving average over
 2 ``defaults.CURVE_PARAM_SMOOTHING`` + 1 samples), zero at p's position along the curve.
 Smoothing makes the parameter noise-free enough (raw chord lengths are ~15% noisy at noise
 0.001 and spacing 0.01), and only the parameter is smoothed: the fitted coordinates are the
-raw samples. The tangent is t = r'(0)/|r'(0)| and the curvature vector
+raw samples. Where the samples crowd the noise (thousands along a curve), the average
+widens and its chords are taken as far apart (``defaults.CURVE_PARAM_MAX_NOISE_CHORD``). The tangent is t = r'(0)/|r'(0)| and the curvature vector
 kappa = (r'' - (r''.t) t)/|r'|^2 at s = 0. The fit stops on each side where the curve turns
 more than ``defaults.CURVE_FIT_MAX_TURN_DEG`` from its direction at p, so that a polynomial
 still describes it. The samples of each curve must therefore be ordered along the curve
@@ -282,16 +283,20 @@ def _third_difference_noise(curves: list[np.ndarray], n: np.ndarray) -> float:
     is the classic difference-based one (the shape's part of a third difference shrinks
     with the cube of the sample spacing, the noise's does not). Each difference is taken
     along the surface normal at its samples (:func:`_across_normals`, the tangent from the
-    moving average of ``defaults.CURVE_PARAM_SMOOTHING`` samples), and pooled with its
+    moving average of :func:`_smoothing_width` samples), and pooled with its
     other two components when they agree (:func:`_normal_or_pooled`); with no difference
     left, the estimate over all components is returned.
     """
     sq, rest, count = 0.0, 0.0, 0
-    k = defaults.CURVE_PARAM_SMOOTHING
     for c in curves:
         d = np.diff(c, n=3, axis=0)
+        k = _smoothing_width(c)
         q = _smoothed(c, k)
-        t = q[3:] - q[:-3]
+        if k == defaults.CURVE_PARAM_SMOOTHING:
+            t = q[3:] - q[:-3]
+        else:  # a dense curve: the tangent from a chord across 2k samples
+            i = np.arange(len(d))
+            t = q[np.minimum(i + 1 + k, len(c) - 1)] - q[np.maximum(i + 2 - k, 0)]
         t /= np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
         normals, keep = _across_normals(t, n)
         along = np.sum(d[keep] * normals[keep], axis=1)
@@ -430,6 +435,36 @@ class _CurveFit:
     n_coefficients: int  # polynomial coefficients per coordinate
 
 
+def _smoothing_width(points: np.ndarray) -> int:
+    """Samples on each side of the moving average that parametrises a curve:
+    ``defaults.CURVE_PARAM_SMOOTHING``, or more where the samples lie close together
+    against the noise (``defaults.CURVE_PARAM_MAX_NOISE_CHORD``), at most a quarter of the
+    curve's samples.
+
+    The noise per coordinate is read from the third differences (the shape's part is
+    negligible where the samples are dense, and only there does it matter); the spacing
+    from the length of the curve taken at about 60 samples (coarse enough that the noise
+    does not lengthen it).
+    """
+    k = defaults.CURVE_PARAM_SMOOTHING
+    n = len(points)
+    if n < 8:
+        return k
+    d3 = np.diff(points, n=3, axis=0)
+    sigma = float(np.sqrt(np.mean(d3 * d3) / 20.0))
+    stride = max(1, (n - 1) // 60)
+    coarse = points[::stride]
+    length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=0), axis=1)))
+    h = length / max(stride * (len(coarse) - 1), 1)
+    if not (h > 0.0 and sigma > 0.0):
+        return k
+    limit = max(k, (n - 1) // 4)
+    ratio = defaults.CURVE_PARAM_MAX_NOISE_CHORD
+    while k < limit and sigma * np.sqrt(6.0 / (2 * k + 1)) > ratio * 2 * k * h:
+        k = min(limit, max(k + 1, int(k * 1.25)))
+    return k
+
+
 def _smoothed(points: np.ndarray, k: int) -> np.ndarray:
     """Centred moving average over 2k + 1 samples (fewer near the ends, keeping them fixed)."""
     n = len(points)
@@ -445,9 +480,15 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
     ``name`` (e.g. ``"curves[1]"``) is used in error messages.
     """
     n = len(points)
-    k = defaults.CURVE_PARAM_SMOOTHING
+    k = _smoothing_width(points)
     q = _smoothed(points, k)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
+    # the chord lengths of the moving average, taken k samples apart and spread evenly
+    # over the samples between (one sample apart, a dense curve's chords are still noise)
+    knots = np.unique(np.concatenate([np.arange(0, n, k), [n - 1]]))
+    sk = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q[knots], axis=0), axis=1))])
+    s = np.interp(np.arange(n), knots, sk) if k > defaults.CURVE_PARAM_SMOOTHING else None
+    if s is None:
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
     j0 = int(np.argmin(np.linalg.norm(points - p, axis=1)))
     lo, hi = max(j0 - max(k, 1), 0), min(j0 + max(k, 1), n - 1)
     u = q[hi] - q[lo]
@@ -457,16 +498,18 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
     s = s - (s[j0] + float((p - q[j0]) @ u))
 
     # the window: the curve on each side of p until it turns too far from its direction at p
-    d = np.empty_like(q)
-    d[1:-1] = q[2:] - q[:-2]
-    d[0], d[-1] = q[1] - q[0], q[-1] - q[-2]
+    # (its direction from chords across 2k samples: on a dense curve, across 2 samples
+    # they are noise)
+    w = 1 if k == defaults.CURVE_PARAM_SMOOTHING else k
+    j = np.arange(n)
+    d = q[np.minimum(j + w, n - 1)] - q[np.maximum(j - w, 0)]
     dn = np.linalg.norm(d, axis=1)
     ok = d @ u >= np.cos(np.radians(defaults.CURVE_FIT_MAX_TURN_DEG)) * dn
     ok[j0] = True
     bad = np.flatnonzero(~ok)
     first = int(bad[bad < j0].max()) + 1 if np.any(bad < j0) else 0
     last = int(bad[bad > j0].min()) - 1 if np.any(bad > j0) else n - 1
-    m = defaults.MIN_POINTS_PER_CURVE
+    m = min(max(defaults.MIN_POINTS_PER_CURVE, 2 * w + 1), n)
     if last - first + 1 < m:  # too sharp a turn: keep the m samples around p
         first = int(np.clip(j0 - m // 2, 0, n - m))
         last = first + m - 1
