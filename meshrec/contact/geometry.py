@@ -22,7 +22,8 @@ of a lightly smoothed copy of the samples (centred moving average over
 Smoothing makes the parameter noise-free enough (raw chord lengths are ~15% noisy at noise
 0.001 and spacing 0.01), and only the parameter is smoothed: the fitted coordinates are the
 raw samples. Where the samples crowd the noise (thousands along a curve), the average
-widens and its chords are taken as far apart (``defaults.CURVE_PARAM_MAX_NOISE_CHORD``). The tangent is t = r'(0)/|r'(0)| and the curvature vector
+widens and its chords are taken as far apart (``defaults.CURVE_PARAM_MAX_NOISE_CHORD``).
+The tangent is t = r'(0)/|r'(0)| and the curvature vector
 kappa = (r'' - (r''.t) t)/|r'|^2 at s = 0. The fit stops on each side where the curve turns
 more than ``defaults.CURVE_FIT_MAX_TURN_DEG`` from its direction at p, so that a polynomial
 still describes it. The samples of each curve must therefore be ordered along the curve
@@ -726,12 +727,30 @@ def _check_meet(
     )
     origins = np.array([f.origin for f in fits])
     if given:
-        miss = []
+        miss, off, near = [], [], []
         for c, o in zip(curves, origins, strict=True):
             nearest = float(np.min(np.linalg.norm(c - p, axis=1)))
             step = float(np.median(np.linalg.norm(np.diff(c, axis=0), axis=1)))
             miss.append(max(float(np.linalg.norm(o - p)), nearest - step))
+            off.append(nearest - step)
+            near.append(nearest)
         i = int(np.argmax(miss))
+        k = int(np.argmax(off))
+        if not miss[i] <= allowed and off[k] > allowed:
+            # Away from the data itself: the fits around it are carried past their data
+            # and their half-lengths are measured from the contact, so neither says how
+            # far it is: the nearest sample does, and the curves' own extent.
+            extent = float(
+                np.median([np.sum(np.linalg.norm(np.diff(c, axis=0), axis=1)) for c in curves])
+            )
+            raise ValueError(
+                f"the contact point {np.round(p, 6).tolist()} is {near[k]:.3g} away from "
+                f"the nearest sample of curves[{k}], and the curves are {extent:.3g} long: it "
+                f"must be where the curves meet (within defaults.MAX_MEET_FRACTION = "
+                f"{defaults.MAX_MEET_FRACTION} of their half-length, or "
+                f"defaults.MAX_MEET_NOISE_FACTOR = {defaults.MAX_MEET_NOISE_FACTOR} times the "
+                "fit residual)"
+            )
         if not miss[i] <= allowed:
             raise ValueError(
                 f"the contact point {np.round(p, 6).tolist()} is {miss[i]:.3g} away from "
