@@ -300,3 +300,25 @@ def test_a_touch_across_an_edge_carries_the_rough_fit_caution(tmp_path, cache):
         rec = meshrec.recognize(sim.touch, library)
     assert any("fit no smooth surface patch" in w for w in rec.warnings)  # the warning
     assert any("probabilities are less reliable" in w for w in rec.warnings)  # the caution
+
+
+def test_an_inward_normal_hint_is_named_in_an_unknown_reason(tmp_path):
+    # a unit sphere (convex everywhere, H = 1 with the outward normal): the touch's true
+    # outward normal as the hint is recognised; minus it (a sign slip) makes the patch
+    # concave (H = -1), which nothing on a sphere matches: `unknown`, and the reason says
+    # the normal may point inwards instead of only "not in the library"
+    folder = tmp_path / "models"
+    folder.mkdir()
+    trimesh.creation.icosphere(subdivisions=5, radius=1.0).export(folder / "ball.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    sim = meshrec.simulate_touch(lib["ball"], length=0.4, noise=0.001, rng=11)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        right = meshrec.recognize(sim.touch.with_hints(normal=sim.normal_touch), lib)
+        wrong = meshrec.recognize(sim.touch.with_hints(normal=-sim.normal_touch), lib)
+    assert right.verdict == "recognised"
+    assert "check its sign" not in right.reason
+    assert abs(wrong.geometry.H + 1.0) < 0.1
+    assert wrong.verdict == "unknown"
+    assert "the normal given with the touch makes the surface concave" in wrong.reason
+    assert "check its sign" in wrong.reason

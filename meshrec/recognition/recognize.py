@@ -1087,6 +1087,8 @@ def _with_verdict(
                 "(they may cross an edge or a rim); the object may still be in the library: "
                 "touch again away from edges"
             )
+        if v.verdict == "unknown":
+            reason = _inward_hint(rec, reason)
         best_reg = rec.best
         if best_reg is None:
             per_touch = (None,) * len(rec.touches)
@@ -1107,6 +1109,33 @@ def _with_verdict(
         scoring_seconds=t_score,
         widened_seconds=t_wide,
         touch_rms=per_touch,
+    )
+
+
+def _inward_hint(rec: Recognition, reason: str) -> str:
+    """An ``unknown`` reason, with a word on the touches whose given normal makes the
+    surface concave at the contact (mean curvature below zero with it, convex against it):
+    an outward normal given with the wrong sign turns a convex patch into a concave one,
+    which no closed convex part of a model matches. Only a hint; the verdict stands."""
+    inward = [
+        k
+        for k, (t, g) in enumerate(zip(rec.touches, rec.geometries, strict=True))
+        if t.normal is not None and float(g.H) < 0.0
+    ]
+    if not inward:
+        return reason
+    if len(rec.touches) == 1:
+        which = "the normal given with the touch makes"
+    elif len(inward) == 1:
+        which = f"the normal given with touch {inward[0] + 1} makes"
+    else:
+        which = "the normals given with touches " + ", ".join(str(k + 1) for k in inward)
+        which += " make"
+    return (
+        f"{reason}; {which} the surface concave at the contact (mean curvature "
+        f"{float(rec.geometries[inward[0]].H):.3g}): if it points into the object rather "
+        "than out of it (an outward normal is minus the probe's approach direction), "
+        "nothing convex can match; check its sign, or leave it out"
     )
 
 
