@@ -20,8 +20,10 @@ def folder(tmp_path):
     cyl.export(d / "can.ply")
     (d / "README.txt").write_text("not a model")  # skipped with a warning: no mesh ending
     (d / ".DS_Store").write_bytes(b"\x00\x01")  # hidden: ignored silently
-    (d / "sub").mkdir()  # not recursive
+    (d / "sub").mkdir()  # not recursive: skipped with a warning, as it holds a mesh
     trimesh.creation.icosphere(subdivisions=1).export(d / "sub" / "hidden.stl")
+    (d / "empty").mkdir()  # no mesh in it: ignored silently
+    (d / "gone.stl").symlink_to(d / "nowhere.stl")  # a broken link: skipped with a warning
     return d
 
 
@@ -32,7 +34,10 @@ def test_from_folder(folder, tmp_path, recwarn):
     )
     assert [str(w.message) for w in recwarn] == [
         f"skipping {str(folder / 'README.txt')!r}: not a mesh file (ending '.txt', expected "
-        ".stl, .obj, .ply, .off)"
+        ".stl, .obj, .ply, .off)",
+        f"skipping {str(folder / 'gone.stl')!r}: a link to a file that does not exist",
+        f"skipping {str(folder / 'sub')!r}: a sub-folder holding 1 mesh file(s); sub-folders "
+        "are not searched (give it as a model folder of its own)",
     ]
     assert recwarn[0].category is LibraryWarning
     assert lib.folder == folder
@@ -43,8 +48,10 @@ def test_from_folder(folder, tmp_path, recwarn):
     assert isinstance(lib["can"], ModelIndex)
     assert "can" in lib
     assert "nope" not in lib
-    assert [(p.name, why.split(" (")[0]) for p, why in lib.skipped] == [
-        ("README.txt", "not a mesh file")
+    assert [(p.name, why.split(" (")[0].split(";")[0]) for p, why in lib.skipped] == [
+        ("README.txt", "not a mesh file"),
+        ("gone.stl", "a link to a file that does not exist"),
+        ("sub", "a sub-folder holding 1 mesh file(s)"),
     ]
     stages = ["loading the mesh", "curvature", "writing the cache", "trees"]
     assert calls == [
@@ -69,6 +76,8 @@ def test_from_folder(folder, tmp_path, recwarn):
         "README.txt",
         "ball.stl",
         "can.ply",
+        "empty",
+        "gone.stl",
         "sub",
     ]
     forced = ModelLibrary.from_folder(
@@ -92,7 +101,7 @@ def test_bad_and_duplicate_files_are_skipped_with_warnings(folder, tmp_path):
     assert lib.names == ("Box", "ball", "can")
     assert lib["ball"].path.name == "ball.off"  # sorted: ball.off comes first
     skipped = {p.name: why for p, why in lib.skipped}
-    assert set(skipped) == {"README.txt", "broken.stl", "ball.stl"}
+    assert set(skipped) == {"README.txt", "broken.stl", "ball.stl", "gone.stl", "sub"}
     assert "could not be read" in skipped["broken.stl"] or "no faces" in skipped["broken.stl"]
 
 
@@ -181,3 +190,18 @@ def test_bundled_roots_point_at_the_package_and_the_repo():
     assert installed.name == "_bundled_models"
     assert installed.parent.name == "meshrec"
     assert repo == installed.parents[1] / "models"
+
+
+def test_a_folder_whose_models_are_one_level_down_says_so(tmp_path):
+    # no mesh in the folder itself, two in a sub-folder: the error names the sub-folder
+    # and that it is not searched
+    top = tmp_path / "models"
+    (top / "parts").mkdir(parents=True)
+    for name in ("a", "b"):
+        trimesh.creation.icosphere(subdivisions=1).export(top / "parts" / f"{name}.stl")
+    with pytest.raises(
+        ValueError,
+        match=r"holds no mesh file .*parts/ \(2 mesh files\); "
+        r"sub-folders are not searched: give one as the folder",
+    ):
+        ModelLibrary.from_folder(top, cache_dir=tmp_path / "cache")

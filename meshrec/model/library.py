@@ -66,8 +66,9 @@ class ModelLibrary:
         Files are taken in sorted order. A file whose ending is not in
         :data:`meshrec.model.mesh.MESH_SUFFIXES` (say ``notes.txt`` or ``part.step``), a mesh
         file that cannot be loaded, or one whose name (stem) repeats an earlier one, is
-        skipped with a warning; hidden files (``.name``), the units note :data:`UNITS_NOTE`
-        and sub-folders are ignored.
+        skipped with a warning, as are a link to a missing file and a sub-folder that holds
+        mesh files (sub-folders are not searched); hidden files (``.name``), the units note
+        :data:`UNITS_NOTE` and other sub-folders are ignored.
         Nothing is ever written into ``folder`` (the cache lives in ``cache_dir``).
 
         Parameters
@@ -280,8 +281,10 @@ def folder_mesh_files(
     """The mesh files directly inside a model folder, as :meth:`ModelLibrary.from_folder`
     takes them, and the other files it skips (with the reason).
 
-    Hidden files (``.name``), the units note :data:`UNITS_NOTE` and sub-folders are left
-    out of both.
+    Hidden files (``.name``) and the units note :data:`UNITS_NOTE` are left out of both.
+    Sub-folders are not searched: one that holds mesh files is skipped with that reason
+    (so that models kept one level down are not lost without a word), others silently; a
+    link whose target does not exist is skipped with that reason.
 
     Parameters
     ----------
@@ -306,27 +309,46 @@ def folder_mesh_files(
     if not root.is_dir():
         raise ValueError(f"model folder {str(root)!r} is not a directory")
     try:
-        entries = sorted(p for p in root.iterdir() if p.is_file())
+        listed = sorted(p for p in root.iterdir() if not p.name.startswith("."))
+        entries = [p for p in listed if p.is_file()]
     except OSError as exc:
         raise ValueError(f"model folder {str(root)!r} cannot be listed ({exc.strerror})") from exc
     files = [p for p in entries if is_mesh_file(p)]
-    others = [
-        p
-        for p in entries
-        if not is_mesh_file(p) and not p.name.startswith(".") and p.name != UNITS_NOTE
-    ]
+    others = [p for p in entries if not is_mesh_file(p) and p.name != UNITS_NOTE]
+    broken = [p for p in listed if p.is_symlink() and not p.exists()]
+    nested = [(p, n) for p in listed if p.is_dir() and (n := _mesh_files_in(p))]
     if not files:
+        held = [p.name for p in others[:5]] + [f"{p.name}/ ({n} mesh files)" for p, n in nested]
         raise ValueError(
             f"model folder {str(root)!r} holds no mesh file "
             f"({', '.join(MESH_SUFFIXES)})"
-            + (f"; it holds {', '.join(p.name for p in others[:5])}" if others else "")
+            + (f"; it holds {', '.join(held)}" if held else "")
+            + ("; sub-folders are not searched: give one as the folder" if nested else "")
         )
     skipped = []
     for p in others:
         ending = repr(p.suffix) if p.suffix else "none"
         reason = f"not a mesh file (ending {ending}, expected {', '.join(MESH_SUFFIXES)})"
         skipped.append((p, reason))
+    for p in broken:
+        skipped.append((p, "a link to a file that does not exist"))
+    for p, n in nested:
+        skipped.append(
+            (
+                p,
+                f"a sub-folder holding {n} mesh file(s); sub-folders are not searched (give it "
+                "as a model folder of its own)",
+            )
+        )
     return tuple(files), tuple(skipped)
+
+
+def _mesh_files_in(folder: Path) -> int:
+    """How many mesh files lie directly in ``folder`` (0 if it cannot be listed)."""
+    try:
+        return sum(1 for p in folder.iterdir() if p.is_file() and is_mesh_file(p))
+    except OSError:
+        return 0
 
 
 def _bundled_roots() -> tuple[Path, ...]:
