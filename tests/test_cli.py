@@ -342,3 +342,18 @@ def test_python_dash_m_runs_the_command_line(tmp_path):
     assert bad.returncode == 2
     assert "missing.csv" in bad.stderr
     assert "Traceback" not in bad.stderr
+
+
+def test_index_refuses_a_cache_folder_it_cannot_write(tmp_path, capsys):
+    # index only fills the cache: a --cache-dir that is a file (or lies under one) is bad
+    # input, exit 2 with one line, before any model is indexed (it warned "continuing
+    # without caching", printed "built" lines and exited 0)
+    blocker = tmp_path / "afile"
+    blocker.write_text("not a folder")
+    for where in (blocker, blocker / "sub"):
+        assert main(["index", "surfaces", "--cache-dir", str(where)]) == 2
+        captured = capsys.readouterr()
+        assert captured.out == ""
+        assert captured.err.count("\n") == 1
+        assert f"--cache-dir {where}: cannot be created" in captured.err
+        assert "index only fills the cache" in captured.err

@@ -44,6 +44,7 @@ def run_index(args, out, err) -> int:
     from meshrec.app import inputs
 
     folder = inputs.model_folder(args.models)
+    _check_cache_folder(args.cache_dir)
     tty = err.isatty()
     try:
         library = inputs.library(args, folder, progress=_progress_printer(err))
@@ -58,6 +59,28 @@ def run_index(args, out, err) -> int:
         )
     _warn_coarse(library.models)
     return 0
+
+
+def _check_cache_folder(cache_dir) -> None:
+    """``index`` is for the cache: refuse one that cannot be a writable folder at once
+    (a recognition goes on without caching, with a warning; an index that caches nothing
+    would exit 0 having done nothing lasting)."""
+    import os
+
+    from meshrec.io.checks import one_line
+    from meshrec.model.cache import default_cache_dir
+
+    where = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    name = "--cache-dir" if cache_dir is not None else "the cache folder"
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(
+            f"{name} {one_line(str(where))}: cannot be created ({exc.strerror or exc}); "
+            "index only fills the cache"
+        ) from exc
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise ValueError(f"{name} {one_line(str(where))}: not writable; index only fills the cache")
 
 
 def _warn_coarse(models) -> None:
