@@ -33,6 +33,7 @@ _WHERE = {
     "estimate_local_geometry": "meshrec.contact.geometry",
     "find_common_point": "meshrec.contact.geometry",
     "ProbeOffsetWarning": "meshrec.contact.probe",
+    "RepeatedSamplesWarning": "meshrec.io.touch",
     "TouchData": "meshrec.io.touch",
     "Truth": "meshrec.io.truth",
     "read_truth": "meshrec.io.truth",
@@ -106,7 +107,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
         find_common_point,
     )
     from meshrec.contact.probe import ProbeOffsetWarning
-    from meshrec.io.touch import TouchData
+    from meshrec.io.touch import RepeatedSamplesWarning, TouchData
     from meshrec.io.truth import Truth, read_truth, write_truth
     from meshrec.model.index import IndexParams, ModelIndex
     from meshrec.model.library import ModelLibrary, bundled_models_dir
@@ -171,6 +172,7 @@ __all__ = [
     "RefinedSearch",
     "Registration",
     "RegistrationTrace",
+    "RepeatedSamplesWarning",
     "ResolutionWarning",
     "RoughFitWarning",
     "Screening",

@@ -252,3 +252,34 @@ def test_from_dict_checks_as_the_json_file_reader_does(tmp_path):
             TouchData.from_json(path)
     with pytest.raises(ValueError, match=r"^touch: "):
         TouchData.from_dict({"curves": [[[0.0, 0.0, float("nan")]] * 5] * 3})
+
+
+def test_without_repeats_leaves_out_exact_copies_of_the_sample_before():
+    rng = np.random.default_rng(3)
+    curves = [rng.normal(size=(9, 3)) for _ in range(3)]
+    touch = TouchData(curves=curves, contact=[0.0, 0.0, 0.0], normal=[0.0, 0.0, 1.0])
+    same, removed = touch.without_repeats()
+    assert same is touch
+    assert removed == 0
+    # each sample logged three times (a logger three times faster than its sensor) and
+    # one sample resting five times: the copies go, the samples and hints stay
+    logged = [np.repeat(c, 3, axis=0) for c in curves[:2]]
+    logged.append(
+        np.concatenate([curves[2][:4], np.repeat(curves[2][4:5], 5, axis=0), curves[2][5:]])
+    )
+    kept, removed = TouchData(
+        curves=logged, normal=[0.0, 0.0, 1.0], source="f.csv"
+    ).without_repeats()
+    assert removed == 2 * 18 + 4
+    for a, b in zip(kept.curves, curves, strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(kept.normal, [0.0, 0.0, 1.0])
+    assert kept.source == "f.csv"
+    # a sample equal to one further back is not a repeat of the one before it: kept
+    back = np.vstack([curves[0], curves[0][:1] + 1.0, curves[0][:1]])
+    assert TouchData(curves=[back, curves[1], curves[2]]).without_repeats()[1] == 0
+    # a curve left with too few samples keeps its copies (the geometry refuses it by name)
+    short = np.repeat(curves[0][:4], 3, axis=0)
+    same, removed = TouchData(curves=[short, curves[1], curves[2]]).without_repeats()
+    assert removed == 0
+    assert len(same.curves[0]) == 12

@@ -322,3 +322,23 @@ def test_an_inward_normal_hint_is_named_in_an_unknown_reason(tmp_path):
     assert wrong.verdict == "unknown"
     assert "the normal given with the touch makes the surface concave" in wrong.reason
     assert "check its sign" in wrong.reason
+
+
+def test_repeated_samples_are_counted_once(surfaces):
+    # every sample logged ten times (a logger ten times faster than its sensor): the
+    # third differences and fit residuals between copies are zero, so the noise read about
+    # half the plain touch's (0.47 on seed 0) and the touch was `ambiguous` (seeds 0 to 2)
+    # or `unknown` (this seed); the copies are now left out, and the answer is the plain
+    # touch's, with a warning saying so
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=3)
+    logged = meshrec.TouchData(curves=[np.repeat(c, 10, axis=0) for c in sim.touch.curves])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = meshrec.recognize(sim.touch, surfaces)
+    with pytest.warns(meshrec.RepeatedSamplesWarning, match=r"the touch: 1647 of its 1830"):
+        rec = meshrec.recognize(logged, surfaces)
+    assert rec.verdict == plain.verdict == "recognised"
+    assert rec.best.model == "ellipsoid"
+    assert rec.noise == plain.noise
+    assert rec.touch.n_points == sim.touch.n_points
+    assert any("counted once" in w for w in rec.warnings)

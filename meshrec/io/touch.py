@@ -31,9 +31,14 @@ from meshrec.io.checks import (
 )
 from meshrec.io.files import read_text, write_atomic
 
-__all__ = ["TouchData"]
+__all__ = ["RepeatedSamplesWarning", "TouchData"]
 
 _CSV_HEADER = ("curve", "x", "y", "z")
+
+
+class RepeatedSamplesWarning(UserWarning):
+    """Samples that repeat the one before them exactly were counted once
+    (:meth:`TouchData.without_repeats`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,6 +158,41 @@ class TouchData:
             source=self.source,
             probe_radius=self.probe_radius,
         )
+
+    def without_repeats(self) -> tuple[TouchData, int]:
+        """This touch with every sample that repeats the one before it exactly left out.
+
+        A logger faster than its sensor, or a probe resting, writes the same reading
+        again. Such copies carry no new measurement, yet each would count as one: the
+        noise estimates (differences and fit residuals between equal samples are zero)
+        would read the noise low, and the scores would count the evidence twice. Copies
+        are kept when a curve would be left with fewer than
+        ``defaults.MIN_POINTS_PER_CURVE`` samples (the geometry then refuses it, naming
+        the duplicates).
+
+        Returns
+        -------
+        touch : TouchData
+            ``self`` when nothing repeats, else a copy without the repeats (the same
+            hints, source and probe radius).
+        removed : int
+            How many samples were left out.
+        """
+        kept = []
+        for c in self.curves:
+            keep = np.concatenate([[True], np.any(c[1:] != c[:-1], axis=1)])
+            kept.append(c[keep])
+        removed = self.n_points - sum(len(c) for c in kept)
+        if removed == 0 or min(len(c) for c in kept) < defaults.MIN_POINTS_PER_CURVE:
+            return self, 0
+        touch = TouchData(
+            curves=kept,
+            contact=self.contact,
+            normal=self.normal,
+            source=self.source,
+            probe_radius=self.probe_radius,
+        )
+        return touch, int(removed)
 
     def with_hints(self, contact=None, normal=None) -> TouchData:
         """Return a copy with ``contact`` and/or ``normal`` replaced where given."""

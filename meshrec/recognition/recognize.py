@@ -13,7 +13,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
-from meshrec.io.touch import TouchData
+from meshrec.io.touch import RepeatedSamplesWarning, TouchData
 from meshrec.model.index import ModelIndex
 from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
@@ -280,6 +280,7 @@ def recognize(
         t0 = time.perf_counter()
         touches = _touches(touch)
         geometries = _geometries(geometry, len(touches))
+        touches, repeats = _without_repeats(touches)
         check_choice(method, SEARCH_METHODS, "method")
         if progress is not None and not callable(progress):
             raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
@@ -304,6 +305,8 @@ def recognize(
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
+                for text in repeats:
+                    warnings.warn(text, RepeatedSamplesWarning, stacklevel=2)
                 if radius > 0.0:
                     with timed("geometry"):
                         geometries = tuple(
@@ -578,6 +581,23 @@ def _touches(touch) -> tuple[TouchData, ...]:
                     "(a repeated touch would count its evidence again)"
                 )
     return tuple(touch)
+
+
+def _without_repeats(touches: tuple) -> tuple[tuple, list[str]]:
+    """The touches without samples that repeat the one before them exactly
+    (:meth:`TouchData.without_repeats`), and a note for each touch that had some."""
+    out, notes = [], []
+    for k, t in enumerate(touches):
+        kept, removed = t.without_repeats()
+        out.append(kept)
+        if removed:
+            which = "the touch" if len(touches) == 1 else f"touch {k + 1}"
+            notes.append(
+                f"{which}: {removed} of its {t.n_points} samples repeat the one before them "
+                "exactly (a logger faster than its sensor, or a probe resting) and were "
+                "counted once: copies carry no new measurement"
+            )
+    return tuple(out), notes
 
 
 def _geometries(geometry, n: int) -> tuple:
