@@ -363,6 +363,8 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
                 loaded = loaded.to_mesh()
     except Exception as exc:  # trimesh raises many types on malformed input
         why = _stl_problem(data) if suffix == ".stl" else None
+        if suffix == ".obj" and isinstance(exc, IndexError):
+            why = _obj_face_problem(data)
         detail = why if why is not None else f"{type(exc).__name__}: {exc}"
         raise ValueError(f"{where} could not be read: {detail}") from exc
     if isinstance(loaded, trimesh.PointCloud):
@@ -428,6 +430,38 @@ def _warn_degenerate(where, n_read, degenerate, vertices, faces) -> None:
             "the model nearer the origin, or in double precision (OBJ)"
         )
     warnings.warn(text, MeshWarning, stacklevel=3)
+
+
+def _obj_face_problem(data: bytes) -> str | None:
+    """The first face line of an OBJ file that refers to a vertex the file does not have,
+    in the file's own terms (its line, 1-based indices), or None if none does.
+
+    Hand-written because trimesh reports such a file with its own internal IndexError
+    ("index 4 is out of bounds for axis 0 with size 4": 0-based, no line). Only the
+    ``v`` and ``f`` records are read; an index counts from 1 over all the file's
+    vertices, a relative (negative) one back from the vertices read so far.
+    """
+    lines = [raw.split() for raw in data.decode("utf-8", "replace").splitlines()]
+    total = sum(1 for parts in lines if parts and parts[0] == "v")
+    count = 0
+    for number, parts in enumerate(lines, start=1):
+        if not parts:
+            continue
+        if parts[0] == "v":
+            count += 1
+        elif parts[0] == "f":
+            for corner in parts[1:]:
+                try:
+                    index = int(corner.split("/")[0])
+                except ValueError:
+                    return f"line {number}: face corner {corner!r} is not a vertex index"
+                if index == 0 or index > total or index < -count:
+                    return (
+                        f"line {number}: a face refers to vertex {index}, and the file has "
+                        f"{total} vertices (OBJ indices count from 1; negative ones back from "
+                        f"the {count} read so far)"
+                    )
+    return None
 
 
 def _stl_problem(data: bytes) -> str | None:
