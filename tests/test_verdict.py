@@ -342,3 +342,20 @@ def test_repeated_samples_are_counted_once(surfaces):
     assert rec.noise == plain.noise
     assert rec.touch.n_points == sim.touch.n_points
     assert any("counted once" in w for w in rec.warnings)
+
+
+def test_touches_in_two_frames_name_the_best_joint_fit_in_the_reason(surfaces):
+    # two touches of the crossed trough, each in a frame of its own (no one rigid pose):
+    # `unknown`; the reason said "each touch alone fits crossed_trough ..." while the
+    # answer's best model was another (the best joint fit), which it never named
+    name = "crossed_trough"
+    a = meshrec.simulate_touch(surfaces[name], rng=1)
+    b = meshrec.simulate_touch(surfaces[name], rng=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize([a.touch, b.touch], surfaces)
+    assert rec.verdict == "unknown"
+    assert f"each touch alone fits {name} to the noise" in rec.reason
+    assert rec.best.model in rec.reason
+    if rec.best.model != name:
+        assert rec.reason.startswith(f"the best joint fit, {rec.best.model}'s, leaves")

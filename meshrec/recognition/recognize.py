@@ -1285,11 +1285,18 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
             _fits_alone(r, t, g)
             for r, t, g in zip(fit.single, rec.touches, rec.geometries, strict=True)
         ):
+            best = rec.best
+            lead = (
+                f"the best joint fit, {best.model}'s, leaves {best.rms / noise:.3g} times the "
+                f"noise; "
+                if best is not None and best.model != reg.model and best.rms is not None
+                else ""
+            )
             return (
-                f"each touch alone fits {reg.model} to the noise, but no one rigid pose fits "
-                f"them all (joint RMS residual {reg.rms:.3g}, {reg.rms / noise:.3g} times the "
-                f"noise {noise:.3g}): the object moved between touches, or it is not in the "
-                "library"
+                f"{lead}each touch alone fits {reg.model} to the noise, but no one rigid pose "
+                f"fits them all (its joint RMS residual {reg.rms:.3g}, {reg.rms / noise:.3g} "
+                f"times the noise {noise:.3g}): the object moved between touches, or it is not "
+                "in the library"
             )
     # Each touch alone fits some model, but not the same one: touches of different objects.
     fitting = []
