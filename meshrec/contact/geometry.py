@@ -453,10 +453,7 @@ def _smoothing_width(points: np.ndarray) -> int:
         return k
     d3 = np.diff(points, n=3, axis=0)
     sigma = float(np.sqrt(np.mean(d3 * d3) / 20.0))
-    stride = max(1, (n - 1) // 60)
-    coarse = points[::stride]
-    length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=0), axis=1)))
-    h = length / max(stride * (len(coarse) - 1), 1)
+    h = _coarse_length(points) / (n - 1)
     if not (h > 0.0 and sigma > 0.0):
         return k
     limit = max(k, (n - 1) // 4)
@@ -464,6 +461,15 @@ def _smoothing_width(points: np.ndarray) -> int:
     while k < limit and sigma * np.sqrt(6.0 / (2 * k + 1)) > ratio * 2 * k * h:
         k = min(limit, max(k + 1, int(k * 1.25)))
     return k
+
+
+def _coarse_length(points: np.ndarray) -> float:
+    """A curve's length along about 60 of its samples (every ``(n - 1) // 60``-th and
+    the last): on a dense noisy curve, the length through every sample is mostly noise."""
+    n = len(points)
+    stride = max(1, (n - 1) // 60)
+    idx = np.unique(np.concatenate([np.arange(0, n, stride), [n - 1]]))
+    return float(np.sum(np.linalg.norm(np.diff(points[idx], axis=0), axis=1)))
 
 
 def _smoothed(points: np.ndarray, k: int) -> np.ndarray:
@@ -740,9 +746,7 @@ def _check_meet(
             # Away from the data itself: the fits around it are carried past their data
             # and their half-lengths are measured from the contact, so neither says how
             # far it is: the nearest sample does, and the curves' own extent.
-            extent = float(
-                np.median([np.sum(np.linalg.norm(np.diff(c, axis=0), axis=1)) for c in curves])
-            )
+            extent = float(np.median([_coarse_length(c) for c in curves]))
             raise ValueError(
                 f"the contact point {np.round(p, 6).tolist()} is {near[k]:.3g} away from "
                 f"the nearest sample of curves[{k}], and the curves are {extent:.3g} long: it "
