@@ -1089,6 +1089,9 @@ def _with_verdict(
                     f"{which} leave {g.fit_to_noise:.3g} times the noise the samples show: "
                     "the curves may cross an edge, and the probabilities are less reliable"
                 )
+        if len(rec.geometries) == 1:
+            v = _rough_hold(v, rec.geometries[0])
+            reason = v.reason
         if rough and v.verdict == "unknown" and rec.best is not None:
             # A misfit from curves that fit no smooth patch: the search, started from the
             # curvature at p, may have missed the right pose across the edge.
@@ -1196,6 +1199,28 @@ def _within_calibration(v: Verdict, rec: Recognition) -> Verdict:
         "measured to hold: at that noise the curvature estimate and the search may miss "
         "the right model's pose; touch again with longer curves or a finer probe, or add "
         "touches",
+        v.fit_ratio,
+    )
+
+
+def _rough_hold(v: Verdict, g: LocalGeometry) -> Verdict:
+    """One touch whose curve fits leave more than ``defaults.ROUGH_HOLD_RATIO`` times the
+    noise (beyond any touch the scores were measured on) names no model: ``recognised``
+    becomes ``ambiguous``, the model alone in ``plausible``, and the reason says why."""
+    if v.verdict != "recognised" or not (
+        g.fit_to_noise > defaults.ROUGH_HOLD_RATIO
+        and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
+    ):
+        return v
+    return Verdict(
+        "ambiguous",
+        v.plausible,
+        f"{v.reason}; but the curves fit no smooth surface patch: their fits leave "
+        f"{g.fit_to_noise:.3g} times the noise the samples show (more than "
+        f"defaults.ROUGH_HOLD_RATIO = {defaults.ROUGH_HOLD_RATIO:g}), so they cross an edge "
+        "or a rim, where the curvature the search starts from is not defined and the right "
+        "model's pose may be missed while another model fits; touch again away from edges, "
+        "or add touches",
         v.fit_ratio,
     )
 
