@@ -9,10 +9,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
-from meshrec import simulate_touch
+from meshrec import TouchData, simulate_touch
 from meshrec.app import cli
 
 MODELS = Path(__file__).resolve().parents[1] / "models" / "surfaces"
@@ -174,8 +175,12 @@ def test_batch_exits_0_when_a_touch_is_unknown_and_its_line_says_so(touches, tmp
     folder, env = touches
     sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)  # curvature 10: no paper
     touch = simulate_touch(sphere, length=0.2, noise=0.001, rng=5).touch  # surface has it
-    touch.to_file(tmp_path / "sphere.csv")
-    single = _run(["recognize", str(tmp_path / "sphere.csv")], env, folder)
+    # each sample logged twice: a RepeatedSamplesWarning raised beside the recognition's
+    # own cautions
+    TouchData(curves=[np.repeat(c, 2, axis=0) for c in touch.curves]).to_file(
+        tmp_path / "sphere.csv"
+    )
+    single = _run(["recognize", str(tmp_path / "sphere.csv"), "--json"], env, folder)
     assert single.returncode == 1, single.stderr
     proc = _run(
         ["recognize", "--batch", str(tmp_path / "sphere.csv"), "ellipsoid.json"], env, folder
@@ -185,3 +190,9 @@ def test_batch_exits_0_when_a_touch_is_unknown_and_its_line_says_so(touches, tmp
     assert [d["verdict"] for d in lines] == ["unknown", "recognised"]
     assert "error" not in lines[0]
     assert "not in the library" in lines[0]["reason"]
+    # the line carries every warning the single --json run gives, the recognition's own
+    # cautions (the widened lookup) too: the batch dropped them when anything else warned
+    want = json.loads(single.stdout)["warnings"]
+    assert any("widened" in w for w in want)
+    assert any("counted once" in w for w in want)
+    assert lines[0]["warnings"] == want

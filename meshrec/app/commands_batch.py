@@ -41,7 +41,10 @@ def _one(
         except ValueError as exc:
             doc = {"file": shown, "error": error_message(exc, units)}
     if caught:
-        doc["warnings"] = [str(w.message) for w in caught]
+        # the warnings raised while reading and recognising first, then the recognition's
+        # own cautions (as `recognize --json` lists them; they were dropped here)
+        raised = [str(w.message) for w in caught]
+        doc["warnings"] = list(dict.fromkeys([*raised, *doc.get("warnings", [])]))
     return doc
 
 
