@@ -309,6 +309,7 @@ def test_cli_json(world, capsys):
     assert set(doc) == {
         "point",
         "direction",
+        "units",
         "expected_gain",
         "models",
         "reason",
@@ -319,6 +320,33 @@ def test_cli_json(world, capsys):
     assert len(doc["direction"]) == 3
     assert _angle_deg(doc["direction"], [-1, 0, 0]) <= defaults.ADVICE_MAX_APPROACH_DEG + 1e-6
     assert doc["verdict"] in meshrec.VERDICTS
+
+
+def test_cli_gives_the_point_in_the_touches_unit(world, tmp_path, capsys):
+    # a touch in millimetres against the models in metres: the advice is computed in
+    # metres (on the touch converted as the command converts it) and given back in the
+    # unit the robot gave its touch (it came in metres, unlabelled: 1000 times too short
+    # for a robot working in mm)
+    from meshrec.recognition.units import convert_touch
+
+    mm = tmp_path / "touch_mm.csv"
+    t = meshrec.TouchData.from_file(world["touch"])
+    meshrec.TouchData(curves=[c * 1000.0 for c in t.curves]).to_file(mm)
+    in_m = convert_touch(meshrec.TouchData.from_file(mm), "mm", "m")
+    rec = meshrec.recognize(in_m, world["library"])
+    want = meshrec.next_touch(rec, world["library"], rng=1)
+    common = ["--models", str(world["folder"]), "--cache-dir", str(world["cache"])]
+    common += ["--seed", "1", "--model-units", "m", "--units", "mm"]
+    assert main(["next-touch", str(mm), *common, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["units"] == "mm"
+    np.testing.assert_allclose(doc["point"], 1000.0 * want.point, rtol=1e-12)
+    np.testing.assert_allclose(doc["direction"], want.direction, rtol=1e-12)
+    assert main(["next-touch", str(mm), *common]) == 0
+    assert " mm, approaching along " in capsys.readouterr().out
+    # without a unit for the touch, the point is in the models' unit, and says so
+    assert main(["next-touch", str(world["touch"]), *common[:-2], "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["units"] == "m"
 
 
 def test_cli_two_touches(world, capsys):

@@ -199,6 +199,7 @@ def test_next_touch_answers_what_next_touch_json_prints(served):
     assert set(doc) == {
         "point",
         "direction",
+        "units",
         "expected_gain",
         "models",
         "reason",

@@ -60,7 +60,9 @@ def _approach(text: str | None):
         ) from None
 
 
-def advice_to_json(advice, verdict: str) -> dict:
+def advice_to_json(
+    advice, verdict: str, units: str | None = None, models_units: str | None = None
+) -> dict:
     """The JSON document of ``meshrec next-touch --json``.
 
     Parameters
@@ -68,15 +70,23 @@ def advice_to_json(advice, verdict: str) -> dict:
     advice : TouchAdvice
     verdict : str
         The recognition's verdict.
+    units, models_units : str or None
+        The touches' unit and the models' (as ``--units`` and ``--model-units`` gave
+        them): when both are known the point is given back in the touches' unit, in which
+        the robot gave its touches (the advice is computed in the models').
 
     Returns
     -------
     dict
-        Keys ``point`` and ``direction`` (lists of three numbers, or null),
-        ``expected_gain`` (nats), ``models``, ``reason``, ``criterion`` and ``verdict``.
+        Keys ``point`` and ``direction`` (lists of three numbers, or null), ``units`` (the
+        point's unit, or null when no unit is known), ``expected_gain`` (nats),
+        ``models``, ``reason``, ``criterion`` and ``verdict``.
     """
     return {
-        "point": None if advice.point is None else advice.point.tolist(),
+        "point": None
+        if advice.point is None
+        else _in_touch_units(advice.point, units, models_units).tolist(),
+        "units": units if units is not None and models_units is not None else models_units,
         "direction": None if advice.direction is None else advice.direction.tolist(),
         "expected_gain": float(advice.expected_gain),
         "models": list(advice.models),
@@ -84,6 +94,15 @@ def advice_to_json(advice, verdict: str) -> dict:
         "criterion": advice.criterion,
         "verdict": verdict,
     }
+
+
+def _in_touch_units(point, units: str | None, models_units: str | None):
+    """A point of the models' unit in the touches' unit (as it is when either is None)."""
+    if units is None or models_units is None:
+        return point
+    from meshrec.recognition.units import unit_factor
+
+    return point * unit_factor(models_units, units)
 
 
 def run_advice(args, out) -> int:
@@ -138,7 +157,7 @@ def run_advice(args, out) -> int:
     rec = recognize(touches, library, geometry=geometries)
     advice = next_touch(rec, library, approach=approach, rng=args.seed)
     if args.json:
-        out.write(json.dumps(advice_to_json(advice, rec.verdict)) + "\n")
+        out.write(json.dumps(advice_to_json(advice, rec.verdict, touch_units, units)) + "\n")
     else:
         plausible = " or ".join(rec.plausible) if rec.plausible else "none"
         what = "1 touch" if len(touches) == 1 else f"{len(touches)} touches"
@@ -146,10 +165,12 @@ def run_advice(args, out) -> int:
         if advice.point is None:
             out.write("next touch: none reachable\n")
         else:
-            p = np.array2string(advice.point, precision=5)
+            p = np.array2string(_in_touch_units(advice.point, touch_units, units), precision=5)
             d = np.array2string(advice.direction, precision=4)
+            unit = touch_units if touch_units is not None and units is not None else units
+            at = f"{p} {unit}" if unit is not None else p
             out.write(
-                f"next touch: at {p}, approaching along {d} "
+                f"next touch: at {at}, approaching along {d} "
                 f"({advice.criterion}, expected gain {advice.expected_gain:.3g} nats)\n"
             )
         out.write(f"{advice.reason}  ({rec.seconds + advice.seconds:.2f} s)\n")

@@ -258,7 +258,7 @@ class Service:
                     )
                 raise BadRequest(text) from None
         if advice:
-            return advice_to_json(found, rec.verdict)
+            return advice_to_json(found, rec.verdict, units, self.models_units)
         shown = list(dict.fromkeys(str(w.message) for w in caught))
         return recognition_to_json(rec, None, warnings=shown)
 
