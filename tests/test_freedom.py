@@ -112,7 +112,10 @@ def box_and_ellipsoid(tmp_path_factory):
 def test_touch_on_a_box_face_is_named_but_its_pose_is_ambiguous(box_and_ellipsoid):
     lib = meshrec.ModelLibrary.from_folder(box_and_ellipsoid)
     t = meshrec.simulate_touch(
-        box_and_ellipsoid / "box.stl", contact=[0.1, 0.05, 0.25], rng=1, length=0.2,
+        box_and_ellipsoid / "box.stl",
+        contact=[0.1, 0.05, 0.25],
+        rng=1,
+        length=0.2,
         noise=0.0005,
     )
     rec = meshrec.recognize(t.touch, lib)
@@ -122,14 +125,35 @@ def test_touch_on_a_box_face_is_named_but_its_pose_is_ambiguous(box_and_ellipsoi
     assert rec.plausible == ("box",)
     assert "only box fits" in rec.reason
     assert "2 slides and 1 turn" in rec.reason
+    assert "the touch fixes its pose only up to" in rec.reason
     assert rec.pose_freedom.sigma == np.inf  # a free pose has no precision
+
+
+def test_two_touches_on_one_box_face_leave_the_same_freedom(box_and_ellipsoid):
+    # two touches of one face (one frame): still 2 slides and 1 turn, and the reason
+    # speaks of the touches (it said "the touch" for any number)
+    lib = meshrec.ModelLibrary.from_folder(box_and_ellipsoid)
+    touches = [
+        meshrec.simulate_touch(
+            box_and_ellipsoid / "box.stl",
+            contact=c,
+            rng=k,
+            length=0.2,
+            noise=0.0005,
+            transform=False,
+        ).touch
+        for k, c in enumerate(([0.1, 0.05, 0.25], [-0.25, -0.1, 0.25]))
+    ]
+    rec = meshrec.recognize(touches, lib)
+    assert rec.best.model == "box"
+    assert (rec.pose_freedom.slides, rec.pose_freedom.turns) == (2, 1)
+    assert rec.verdict == "ambiguous"
+    assert "the touches fix its pose only up to 2 slides and 1 turn" in rec.reason
 
 
 def test_touch_on_an_ellipsoid_is_recognised_with_a_fixed_pose(box_and_ellipsoid):
     lib = meshrec.ModelLibrary.from_folder(box_and_ellipsoid)
-    t = meshrec.simulate_touch(
-        box_and_ellipsoid / "ellipsoid.stl", rng=2, noise=0.0005
-    )
+    t = meshrec.simulate_touch(box_and_ellipsoid / "ellipsoid.stl", rng=2, noise=0.0005)
     rec = meshrec.recognize(t.touch, lib)
     assert rec.best.model == "ellipsoid"
     assert rec.pose_freedom.free == 0
@@ -270,9 +294,7 @@ def test_flat_touch_decides_only_when_wider_than_the_other_flat_faces(tmp_path):
     folder.mkdir()
     box = trimesh.creation.box(extents=(4.0, 4.0, 1.0))
     box.export(folder / "box.stl")
-    trimesh.creation.cylinder(radius=1.0, height=3.0, sections=32).export(
-        folder / "cylinder.stl"
-    )
+    trimesh.creation.cylinder(radius=1.0, height=3.0, sections=32).export(folder / "cylinder.stl")
     lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
     v, f = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=0.05)
     fine = trimesh.Trimesh(v, f)

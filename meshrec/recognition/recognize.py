@@ -432,7 +432,8 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
             reason=(
                 f"only {best.model} fits the data (probability "
                 f"{rec.probabilities.get(best.model, float('nan')):.3f}), but "
-                f"the touch fixes its pose only up to {what}: the pose reported is one of "
+                f"{'the touch fixes' if len(rec.touches) <= 1 else 'the touches fix'} its "
+                f"pose only up to {what}: the pose reported is one of "
                 "many that fit equally well; touch again across an edge or on a curved part "
                 "to fix it"
             ),
