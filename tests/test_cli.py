@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import meshrec
 from meshrec.app.cli import main
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -357,3 +358,19 @@ def test_index_refuses_a_cache_folder_it_cannot_write(tmp_path, capsys):
         assert captured.err.count("\n") == 1
         assert f"--cache-dir {where}: cannot be created" in captured.err
         assert "index only fills the cache" in captured.err
+
+
+def test_an_unknown_answer_does_not_call_its_best_fits_pose_precise(tmp_path, capsys):
+    # a sphere of radius 1.3 touched, only one of radius 1 in the folder: `unknown`, with a
+    # best fit that misses the data; its pose line says so instead of "pose: fixed (data
+    # points within about ...)" as if the pose were known that well
+    (tmp_path / "m").mkdir()
+    trimesh.creation.icosphere(subdivisions=4, radius=1.0).export(tmp_path / "m" / "sphere.stl")
+    big = trimesh.creation.icosphere(subdivisions=5, radius=1.3)
+    meshrec.simulate_touch(big, length=0.6, noise=0.0005, rng=2).touch.to_file(tmp_path / "t.csv")
+    args = ["recognize", str(tmp_path / "t.csv"), "--models", str(tmp_path / "m")]
+    assert main([*args, "--cache-dir", str(tmp_path / "c")]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1].startswith("unknown: not in the library (best fit: sphere)")
+    assert any(ln.startswith("pose of the best fit (it misses the data): ") for ln in lines)
+    assert not any(ln.startswith("pose: ") for ln in lines)

@@ -301,7 +301,9 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
     if rec.pose_freedom is not None:
         sigma = rec.pose_freedom.sigma
         known = f" (data points within about {sigma:.2g}, one sigma)" if np.isfinite(sigma) else ""
-        out.write(f"pose: {rec.pose_freedom.description}{known}\n")
+        # an unknown answer's best fit misses the data: its precision says nothing
+        whose = "pose of the best fit (it misses the data)" if rec.verdict == "unknown" else "pose"
+        out.write(f"{whose}: {rec.pose_freedom.description}{known}\n")
     if rec.verdict == "recognised":
         what = rec.plausible[0]
         if rec.pose_freedom is not None and not rec.pose_freedom.fixed:
