@@ -437,6 +437,11 @@ ROUGH_FIT_MIN_FRACTION = 1e-3
 #: ``tools/families.py --trials 2`` (192: parts, primitives, YCB scans, surfaces; 8.8, on a
 #: part) is below it: none of their answers changes (regenerated and measured, stop 30).
 ROUGH_HOLD_RATIO = 10.0
+#: Two touches whose points all agree within this fraction of their extent are one touch
+#: given twice (re-saved with rounding, or a jitter added), refused like an exact copy: a
+#: second touch of the same place carries the probe's own noise, which no probe has below
+#: 1e-7 of the touch's size (10 nm on a 0.1 m touch).
+TOUCH_COPY_FRACTION = 1e-7
 
 # --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
 #: Degrees of freedom of the pose search (a rigid motion), taken off in the fit test.

@@ -193,6 +193,21 @@ def test_the_same_touch_twice_is_refused(library, three_on_ellipsoid, tmp_path, 
     )
     assert status == 2
     assert "holds the same data as touch[0]" in capsys.readouterr().err
+    # a jitter far below any probe's noise (1e-9 of the touch's size, as re-saving with
+    # rounding leaves) is the same data too; a difference at a probe's noise is not
+    rng = np.random.default_rng(0)
+    size = float(np.linalg.norm(np.ptp(touches[0].points, axis=0)))
+    for scale, refused in ((1e-9, True), (1e-5, False)):
+        jittered = meshrec.TouchData(
+            curves=[c + rng.uniform(-scale, scale, c.shape) * size for c in touches[0].curves]
+        )
+        if refused:
+            with pytest.raises(ValueError, match=r"touch\[1\] holds nearly the same data"):
+                meshrec.recognize([touches[0], jittered], library)
+        else:
+            from meshrec.recognition.recognize import _touches
+
+            assert len(_touches([touches[0], jittered])) == 2
 
 
 def test_recognize_names_a_bad_entry_and_geometry(library, three_on_ellipsoid):

@@ -571,14 +571,30 @@ def _touches(touch) -> tuple[TouchData, ...]:
     # The same data twice (a file given twice) would count its evidence twice: its
     # likelihood ratios squared, an ambiguous answer made "recognised" by repetition.
     # (Two touches of the same place carry independent noise and are welcome.)
+    # Copies that differ only far below any probe's noise (re-saved with rounding, a
+    # jitter added) are the same data: within defaults.TOUCH_COPY_FRACTION of their extent.
     for j, b in enumerate(touch):
         for i in range(j):
             a = touch[i]
-            if len(a.curves) == len(b.curves) and all(
-                np.array_equal(x, y) for x, y in zip(a.curves, b.curves, strict=True)
+            if len(a.curves) != len(b.curves) or any(
+                x.shape != y.shape for x, y in zip(a.curves, b.curves, strict=True)
             ):
+                continue
+            extent = float(np.linalg.norm(np.ptp(a.points, axis=0)))
+            apart = max(
+                float(np.max(np.abs(x - y))) for x, y in zip(a.curves, b.curves, strict=True)
+            )
+            if apart <= defaults.TOUCH_COPY_FRACTION * extent:
+                same = (
+                    "the same data"
+                    if apart == 0.0
+                    else (
+                        f"nearly the same data (every point within {apart:.3g}, "
+                        f"{apart / extent:.2g} of its extent)"
+                    )
+                )
                 raise ValueError(
-                    f"touch[{j}] holds the same data as touch[{i}]: give each touch once "
+                    f"touch[{j}] holds {same} as touch[{i}]: give each touch once "
                     "(a repeated touch would count its evidence again)"
                 )
     return tuple(touch)
@@ -962,9 +978,7 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
     return dataclasses.replace(rec, ranking=tuple(merged))
 
 
-def _with_verdict(
-    rec: Recognition, fits: dict, models: list, method: str, run=None
-) -> Recognition:
+def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=None) -> Recognition:
     """Add the calibrated scores, the verdict and its cautions to a ranking.
 
     When even the best model fits far worse than the noise (or no model was registered),
