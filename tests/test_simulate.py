@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import meshrec
 from meshrec import defaults
 from meshrec.io.touch import TouchData
 from meshrec.io.truth import Truth, read_truth
@@ -363,6 +364,9 @@ def test_mesh_from_file_and_duck_typed_object(tmp_path, coarse_sphere):
     assert duck.model == "duck"
     bare = simulate_touch(coarse_sphere, rng=1)
     assert bare.model == ""
+    # a ModelIndex gives its name (its MeshData has none: the truth said model '')
+    index = meshrec.ModelIndex.from_file(path, cache_dir=tmp_path / "cache")
+    assert simulate_touch(index, rng=1).model == "ball"
     np.testing.assert_allclose(duck.touch.points, bare.touch.points)
     np.testing.assert_allclose(from_file.contact, bare.contact, atol=1e-9)
 

@@ -448,7 +448,9 @@ def _resolve_mesh(mesh) -> tuple[trimesh.Trimesh, str]:
         if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
             raise ValueError(f"{label}: holds no triangle mesh")
         return loaded, path.stem
+    name = None
     if isinstance(mesh, ModelIndex):
+        name = mesh.name  # the model's name: its MeshData has none
         mesh = mesh.mesh
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
         vertices = check_points(mesh.vertices, "mesh.vertices")
@@ -460,7 +462,7 @@ def _resolve_mesh(mesh) -> tuple[trimesh.Trimesh, str]:
         if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
             raise ValueError(f"mesh.faces must index the {len(vertices)} vertices")
         tm = trimesh.Trimesh(vertices=vertices, faces=faces.astype(np.int64), process=False)
-        label = getattr(mesh, "name", "")
+        label = name if name is not None else getattr(mesh, "name", "")
         return tm, "" if label is None else str(label)
     raise TypeError(
         "mesh must be a trimesh.Trimesh, a path to a mesh file, or an object with "
