@@ -152,6 +152,21 @@ def test_transformed_rejects_bad_matrix():
 
 
 @pytest.mark.parametrize(
+    "T",
+    [
+        np.diag([2.0, 2.0, 2.0, 1.0]),  # a scale
+        np.diag([-1.0, 1.0, 1.0, 1.0]),  # a mirror
+        np.array([[1, 0.3, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]),  # a shear
+        np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0.1, 0, 0, 1.0]]),  # projective
+    ],
+)
+def test_transformed_rejects_a_motion_that_is_not_rigid(T):
+    # each was applied silently (the last row ignored): a touch would change its shape
+    with pytest.raises(ValueError, match=r"T must be a rigid transform"):
+        TouchData(curves=_curves()).transformed(T)
+
+
+@pytest.mark.parametrize(
     ("name", "content", "match"),
     [
         ("e.csv", "", "empty"),

@@ -147,9 +147,11 @@ class TouchData:
         TypeError
             If ``T`` is not an array of real numbers.
         ValueError
-            If ``T`` is not a finite (4, 4) array.
+            If ``T`` is not a finite (4, 4) array or not rigid (a rotation and a
+            translation, last row (0, 0, 0, 1), within ``defaults.RIGID_TOLERANCE``): a
+            scale, mirror or shear would change the shape the touch measured.
         """
-        T = check_transform(T, "T")
+        T = check_transform(T, "T", rigid=True)
         R, t = T[:3, :3], T[:3, 3]
         return TouchData(
             curves=[c @ R.T + t for c in self.curves],
