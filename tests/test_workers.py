@@ -251,6 +251,16 @@ def test_an_unreachable_scheduler_is_an_error(library, monkeypatch):
         ModelWorkers(lib, scheduler="tcp://127.0.0.1:9")
 
 
+@pytest.mark.parametrize("address", ["x", "tcp://host-without-port", "tcp://h:port"])
+def test_a_malformed_scheduler_address_names_the_argument(library, address):
+    # it raised distributed's own "missing port number in address 'x'" from inside a
+    # Client, which was left running and held the interpreter's exit for 20 s
+    pytest.importorskip("distributed")
+    lib, _ = library
+    with pytest.raises(ValueError, match=r"scheduler must be a Dask scheduler address .*got"):
+        ModelWorkers(lib, scheduler=address)
+
+
 def test_scheduler_without_distributed_is_an_import_error(library, monkeypatch):
     lib, _ = library
     monkeypatch.setitem(sys.modules, "distributed", None)

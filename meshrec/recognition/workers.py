@@ -196,7 +196,8 @@ class ModelWorkers:
         ``cache_dir`` not a path.
     ValueError
         If ``workers`` is not a positive integer, the library is empty, its models have
-        different index parameters (in parallel), or the scheduler cannot be reached.
+        different index parameters (in parallel), or ``scheduler`` is not a Dask address
+        (``tcp://host:port``) or cannot be reached.
     ImportError
         If ``scheduler`` is given and ``distributed`` is not installed
         (``pip install meshrec[dask]``).
@@ -505,6 +506,19 @@ def _dask_client(address: str):
         raise ImportError(
             f"scheduler needs the Dask 'distributed' package (pip install meshrec[dask]): {exc}"
         ) from exc
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        # checked before a Client is made: one that fails on a malformed address inside
+        # its constructor is left running, and holds the interpreter's exit for seconds
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except ValueError as exc:
+        raise ValueError(
+            f"scheduler must be a Dask scheduler address such as 'tcp://127.0.0.1:8786', "
+            f"got {address!r} ({exc})"
+        ) from None
     try:
         return Client(address, timeout=defaults.DASK_CONNECT_SECONDS, set_as_default=False)
     except OSError as exc:
