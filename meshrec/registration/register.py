@@ -86,7 +86,10 @@ class Registration:
         Model file.
     error : float or None
         Mean unsigned point-to-surface distance per data point, model units (the paper's
-        Table 4 measure); None when the model had no candidates.
+        Table 4 measure); None when the model had no candidates. The surface is the
+        model's smooth surface: its flat faces bulged by the heights their corner normals
+        imply (:mod:`meshrec.registration.objective`), within the mesh's chord error of
+        its faces (on a coarse export, points lying on the flat faces are that far off).
     contact : (3,) float or None
         The estimated contact p* on the model, model coordinates.
     normal : (3,) float or None
@@ -117,7 +120,8 @@ class Registration:
         The contact's path in each local search, model coordinates.
     rms : float or None
         Root-mean-square point-to-surface distance at ``T_model_touch`` (the objective
-        the refinement minimises, by which the pose was chosen), model units.
+        the refinement minimises, by which the pose was chosen), model units; to the
+        smooth surface, as ``error``.
     n_points : int
         Data points in ``error`` and ``rms`` (0 when rejected).
     poses : tuple of PoseHypothesis

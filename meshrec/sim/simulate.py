@@ -225,7 +225,9 @@ def simulate_touch(
     centred on ``c`` (the middle sample is ``c``). Uniform noise in ``[-noise, noise]`` is
     added to every coordinate (in the model frame, independently per curve), or only along
     the smooth normal at each sample, and the curves are then moved by a random rigid
-    motion.
+    motion. The sections are those of the mesh's flat faces: on a coarse export they lie
+    up to its chord error from the smooth surface that recognition compares with (see
+    ``Registration.error``), so simulate on a fine mesh of the object.
 
     Parameters
     ----------
