@@ -60,6 +60,8 @@ def test_from_folder(folder, tmp_path, recwarn):
         for label in [name, *(f"{name} ({s})" for s in stages)]
     ]
     assert "ball" in repr(lib)
+    with pytest.raises(TypeError, match=r"looked up by its name \(a str\), got int"):
+        lib[0]
     with pytest.raises(KeyError, match="no model named 'nope'"):
         lib["nope"]
     # everything cached now, and loading from the cache reports no stages; the model

@@ -177,3 +177,10 @@ def test_parse_mesh_errors(tmp_path):
         mesh_mod.parse_mesh(b"glTF", tmp_path / "x.glb")
     with pytest.raises(ValueError, match=r"x\.stl' is empty \(0 bytes\)"):
         mesh_mod.parse_mesh(b"", tmp_path / "x.stl")
+
+
+@pytest.mark.parametrize("func", [load_mesh, check_mesh_path])
+def test_a_path_that_is_not_a_path_names_the_argument(func):
+    # it raised pathlib's own "expected str, bytes or os.PathLike object, not int"
+    with pytest.raises(TypeError, match=r"path must be a str or os\.PathLike, got int"):
+        func(5)

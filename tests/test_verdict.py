@@ -182,6 +182,9 @@ def test_register_refuses_a_bad_lookup_scale(surfaces):
     sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=24)
     with pytest.raises(ValueError, match="lookup_scale"):
         meshrec.register(sim.touch, surfaces["ellipsoid"], lookup_scale=0.0)
+    # a flag given as a string was taken as true
+    with pytest.raises(TypeError, match="trace must be a bool, got str"):
+        meshrec.register(sim.touch, surfaces["ellipsoid"], trace="yes")
 
 
 def test_a_wider_lookup_finds_at_least_as_many_candidates(surfaces):

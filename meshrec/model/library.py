@@ -253,9 +253,17 @@ class ModelLibrary:
 
         Raises
         ------
+        TypeError
+            If ``name`` is not a str (models are looked up by name, not position: use
+            ``library.models[i]``).
         KeyError
             If there is no such model.
         """
+        if not isinstance(name, str):
+            raise TypeError(
+                f"a model is looked up by its name (a str), got {type(name).__name__}; "
+                "library.models[i] holds them in order"
+            )
         for m in self.models:
             if m.name == name:
                 return m

@@ -206,10 +206,14 @@ def check_mesh_path(path: str | os.PathLike) -> Path:
 
     Raises
     ------
+    TypeError
+        If ``path`` is not a str or path-like.
     ValueError
         If ``path`` does not exist, is not a regular file (e.g. a directory), or its
         ending is not in :data:`MESH_SUFFIXES`.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
     p = Path(path)
     if not p.exists():
         raise ValueError(f"mesh file {str(p)!r} does not exist")
@@ -286,6 +290,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
 
     Raises
     ------
+    TypeError
+        If ``path`` is not a str or path-like.
     ValueError
         If ``path`` does not exist, is a directory or not a regular file, has an
         unsupported ending, is unreadable, or its content is refused by

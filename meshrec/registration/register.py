@@ -297,8 +297,8 @@ def register(
     TypeError
         If ``touch`` is not a TouchData, ``model`` not a ModelIndex, ``geometry`` not a
         LocalGeometry, ``method`` not a string, ``max_candidates`` or ``searches`` not an
-        integer, or ``lookup_scale`` not a real number (the shared checks of
-        :mod:`meshrec.io.checks`).
+        integer, ``lookup_scale`` not a real number (the shared checks of
+        :mod:`meshrec.io.checks`), or ``trace`` not a bool.
     ValueError
         If ``method`` is unknown, ``max_candidates`` or ``searches`` is less than 1,
         ``lookup_scale`` is not a positive finite number, or the local geometry cannot be
@@ -308,6 +308,8 @@ def register(
     check_instance(model, ModelIndex, "model")
     check_instance(geometry, LocalGeometry, "geometry", optional=True)
     _stage_inputs(method, max_candidates, searches, lookup_scale)
+    if not isinstance(trace, (bool, np.bool_)):
+        raise TypeError(f"trace must be a bool, got {type(trace).__name__}")
     coarse = register_coarse(
         touch, model, geometry, max_candidates=max_candidates, lookup_scale=lookup_scale
     )
