@@ -86,7 +86,7 @@ def advice_to_json(
         "point": None
         if advice.point is None
         else _in_touch_units(advice.point, units, models_units).tolist(),
-        "units": units if units is not None and models_units is not None else models_units,
+        "units": _point_unit(units, models_units),
         "direction": None if advice.direction is None else advice.direction.tolist(),
         "expected_gain": float(advice.expected_gain),
         "models": list(advice.models),
@@ -94,6 +94,12 @@ def advice_to_json(
         "criterion": advice.criterion,
         "verdict": verdict,
     }
+
+
+def _point_unit(units: str | None, models_units: str | None) -> str | None:
+    """The unit the proposed point is given in: the touches' when both units are known
+    (:func:`_in_touch_units` converts it), else the models' (or None)."""
+    return units if units is not None and models_units is not None else models_units
 
 
 def _in_touch_units(point, units: str | None, models_units: str | None):
@@ -167,7 +173,7 @@ def run_advice(args, out) -> int:
         else:
             p = np.array2string(_in_touch_units(advice.point, touch_units, units), precision=5)
             d = np.array2string(advice.direction, precision=4)
-            unit = touch_units if touch_units is not None and units is not None else units
+            unit = _point_unit(touch_units, units)
             at = f"{p} {unit}" if unit is not None else p
             out.write(
                 f"next touch: at {at}, approaching along {d} "

@@ -489,13 +489,15 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
     n = len(points)
     k = _smoothing_width(points)
     q = _smoothed(points, k)
-    # the chord lengths of the moving average, taken k samples apart and spread evenly
-    # over the samples between (one sample apart, a dense curve's chords are still noise)
-    knots = np.unique(np.concatenate([np.arange(0, n, k), [n - 1]]))
-    sk = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q[knots], axis=0), axis=1))])
-    s = np.interp(np.arange(n), knots, sk) if k > defaults.CURVE_PARAM_SMOOTHING else None
-    if s is None:
+    # the chord lengths of the moving average; on a dense curve (a wider average) taken k
+    # samples apart and spread evenly over the samples between: one sample apart, its
+    # chords are still noise
+    if k == defaults.CURVE_PARAM_SMOOTHING:
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
+    else:
+        knots = np.unique(np.concatenate([np.arange(0, n, k), [n - 1]]))
+        chords = np.linalg.norm(np.diff(q[knots], axis=0), axis=1)
+        s = np.interp(np.arange(n), knots, np.concatenate([[0.0], np.cumsum(chords)]))
     j0 = int(np.argmin(np.linalg.norm(points - p, axis=1)))
     lo, hi = max(j0 - max(k, 1), 0), min(j0 + max(k, 1), n - 1)
     u = q[hi] - q[lo]
