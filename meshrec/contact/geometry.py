@@ -50,6 +50,7 @@ from numpy.polynomial import polynomial as npoly
 from scipy.spatial import cKDTree
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_curves, check_int, check_vector, one_line
 
 __all__ = [
@@ -69,7 +70,7 @@ class RoughFitWarning(UserWarning):
 # results
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class CommonPoint:
+class CommonPoint(ValueEquality):
     """Where concurrent curves (nearly) meet.
 
     Attributes
@@ -91,7 +92,7 @@ class CommonPoint:
 
 
 @dataclass(frozen=True, eq=False)
-class LocalGeometry:
+class LocalGeometry(ValueEquality):
     """Normal and curvatures of the surface at the common point of the curves.
 
     Attributes

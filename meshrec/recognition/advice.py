@@ -31,6 +31,7 @@ import igl
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import (
     check_instance,
     check_int,
@@ -50,8 +51,8 @@ __all__ = ["CRITERIA", "TouchAdvice", "next_touch"]
 CRITERIA = ("separate", "pose")
 
 
-@dataclass(frozen=True)
-class TouchAdvice:
+@dataclass(frozen=True, eq=False)
+class TouchAdvice(ValueEquality):
     """Where to touch next, and why.
 
     Attributes
@@ -82,7 +83,7 @@ class TouchAdvice:
     criterion: str
     models: tuple[str, ...]
     reason: str
-    seconds: float
+    seconds: float = dataclasses.field(compare=False)
 
     def __post_init__(self) -> None:
         for name in ("point", "direction"):

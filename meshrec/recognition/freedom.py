@@ -28,13 +28,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_points
 
 __all__ = ["PoseFreedom", "pose_freedom", "pose_sigma", "with_alternatives", "with_symmetries"]
 
 
-@dataclass(frozen=True)
-class PoseFreedom:
+@dataclass(frozen=True, eq=False)
+class PoseFreedom(ValueEquality):
     """The rigid motions the data leave free at a pose.
 
     Attributes

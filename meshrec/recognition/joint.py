@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.touch import TouchData
 from meshrec.recognition.pairs import pair_seeds
@@ -59,8 +60,8 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class JointFit:
+@dataclass(frozen=True, eq=False)
+class JointFit(ValueEquality):
     """One model's registration of several touches at one rigid pose.
 
     Attributes

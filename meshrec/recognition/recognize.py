@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_choice, check_instance
 from meshrec.io.touch import RepeatedSamplesWarning, TouchData
@@ -66,8 +67,8 @@ from meshrec.registration.transform import apply_transform
 __all__ = ["Recognition", "recognize"]
 
 
-@dataclass(frozen=True)
-class Recognition:
+@dataclass(frozen=True, eq=False)
+class Recognition(ValueEquality):
     """The models ranked by how well the touch data superpose onto them.
 
     Attributes
@@ -142,15 +143,15 @@ class Recognition:
     touch: TouchData
     geometry: LocalGeometry
     ranking: tuple[Registration, ...]
-    seconds: float
+    seconds: float = dataclasses.field(compare=False)
     verdict: str = "unknown"
     plausible: tuple[str, ...] = ()
     noise: float = float("nan")
     reason: str = ""
     warnings: tuple[str, ...] = ()
     scores: tuple[ModelScore, ...] = ()
-    scoring_seconds: float = 0.0
-    widened_seconds: float = 0.0
+    scoring_seconds: float = dataclasses.field(default=0.0, compare=False)
+    widened_seconds: float = dataclasses.field(default=0.0, compare=False)
     touches: tuple[TouchData, ...] = ()
     geometries: tuple[LocalGeometry, ...] = ()
     touch_rms: tuple[float | None, ...] = ()

@@ -24,6 +24,7 @@ import numpy as np
 from scipy import special
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 
 __all__ = [
     "VERDICTS",
@@ -44,8 +45,8 @@ __all__ = [
 VERDICTS = ("recognised", "ambiguous", "unknown")
 
 
-@dataclass(frozen=True)
-class WeightedPose:
+@dataclass(frozen=True, eq=False)
+class WeightedPose(ValueEquality):
     """One distinct pose of the touch on a model, with its weight.
 
     Attributes
@@ -66,8 +67,8 @@ class WeightedPose:
         return f"WeightedPose(rms={self.rms:.4g}, weight={self.weight:.3f})"
 
 
-@dataclass(frozen=True)
-class ModelScore:
+@dataclass(frozen=True, eq=False)
+class ModelScore(ValueEquality):
     """The calibrated score of one model of the ranking.
 
     Attributes

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.io.checks import check_instance, check_int
 from meshrec.io.touch import TouchData
@@ -204,8 +205,8 @@ def library_sites(models: Sequence) -> LibrarySites:
     return sites
 
 
-@dataclass(frozen=True)
-class LibraryScreen:
+@dataclass(frozen=True, eq=False)
+class LibraryScreen(ValueEquality):
     """The screen's result for one touch.
 
     Attributes
@@ -241,7 +242,7 @@ class LibraryScreen:
     shift: np.ndarray = field(repr=False)
     candidates: np.ndarray = field(repr=False)
     raw_hits: np.ndarray = field(repr=False)
-    seconds: float = 0.0
+    seconds: float = field(default=0.0, compare=False)
 
 
 def _frames(normals: np.ndarray, dir1: np.ndarray) -> np.ndarray:

@@ -28,14 +28,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.registration.chart import SurfacePoint, rotation_z
 from meshrec.registration.objective import point_distances
 
 __all__ = ["BoundedGrid", "bounded_grid_errors", "exact_samples", "placed_grid"]
 
 
-@dataclass(frozen=True)
-class BoundedGrid:
+@dataclass(frozen=True, eq=False)
+class BoundedGrid(ValueEquality):
     """The sampled error against phi: exact where needed, a lower bound elsewhere.
 
     Attributes

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_choice, check_instance, check_int
 from meshrec.model.index import ModelIndex
 from meshrec.registration.bounded import bounded_grid_errors, exact_samples, placed_grid
@@ -40,8 +41,8 @@ __all__ = [
 PHI_GRID_DISTANCES = ("fields", "exact")
 
 
-@dataclass(frozen=True)
-class PhiBrackets:
+@dataclass(frozen=True, eq=False)
+class PhiBrackets(ValueEquality):
     """The sampled error against phi of every candidate, and their ranking.
 
     Attributes

@@ -23,6 +23,8 @@ from math import sqrt
 
 import numpy as np
 
+from meshrec._values import ValueEquality
+
 __all__ = ["BoundedMinima", "minimize_bounded"]
 
 #: scipy's constants of the method (``_minimize_scalar_bounded``).
@@ -30,8 +32,8 @@ _SQRT_EPS = sqrt(2.2e-16)
 _GOLDEN_MEAN = 0.5 * (3.0 - sqrt(5.0))
 
 
-@dataclass(frozen=True)
-class BoundedMinima:
+@dataclass(frozen=True, eq=False)
+class BoundedMinima(ValueEquality):
     """The minima of many bounded scalar problems.
 
     Attributes

@@ -15,13 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_number
 
 __all__ = ["CandidateSet", "curvature_tolerance", "find_candidates", "spread_points"]
 
 
-@dataclass(frozen=True)
-class CandidateSet:
+@dataclass(frozen=True, eq=False)
+class CandidateSet(ValueEquality):
     """The candidates found on one model for one side of the surface.
 
     Attributes

@@ -18,11 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from meshrec._values import ValueEquality
+
 __all__ = ["SurfaceChart", "SurfacePoint", "rotation_z", "tangent_frame"]
 
 
-@dataclass(frozen=True)
-class SurfacePoint:
+@dataclass(frozen=True, eq=False)
+class SurfacePoint(ValueEquality):
     """A point on the model with its tangent frame.
 
     Attributes

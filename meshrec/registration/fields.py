@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_instance, check_number
 from meshrec.model.heightfield import fit_heightfields, heightfield_distances, monomials
 from meshrec.model.index import ModelIndex
@@ -49,8 +50,8 @@ from meshrec.registration.objective import mean_distances
 __all__ = ["CandidateFields", "candidate_fields", "field_grid_errors"]
 
 
-@dataclass(frozen=True)
-class CandidateFields:
+@dataclass(frozen=True, eq=False)
+class CandidateFields(ValueEquality):
     """Local height-fields at candidate contacts, in each candidate's frame.
 
     Attributes

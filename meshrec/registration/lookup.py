@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.contact.geometry import LocalGeometry
 from meshrec.contact.probe import surface_geometry
 from meshrec.io.checks import check_instance
@@ -32,8 +33,8 @@ from meshrec.registration.chart import SurfacePoint, tangent_frame
 __all__ = ["ContactCandidates", "lookup_candidates", "surface_sides"]
 
 
-@dataclass(frozen=True)
-class ContactCandidates:
+@dataclass(frozen=True, eq=False)
+class ContactCandidates(ValueEquality):
     """The candidate contacts on one model, both sides together, in lookup order.
 
     Attributes

@@ -19,13 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from meshrec._values import ValueEquality
 from meshrec.model.probe import probe_radius_of
 
 __all__ = ["Residuals", "mean_distances", "point_distances", "residuals"]
 
 
-@dataclass(frozen=True)
-class Residuals:
+@dataclass(frozen=True, eq=False)
+class Residuals(ValueEquality):
     """Signed point-to-surface residuals of a set of points.
 
     Attributes

@@ -15,13 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.registration.brent import minimize_bounded
 
 __all__ = ["PhiSearch", "bracket_minima", "search_phi", "search_phis"]
 
 
-@dataclass(frozen=True)
-class PhiSearch:
+@dataclass(frozen=True, eq=False)
+class PhiSearch(ValueEquality):
     """Result of the phi search at one candidate.
 
     Attributes

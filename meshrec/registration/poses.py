@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_instance, check_number, check_vector
 from meshrec.model.index import ModelIndex
 from meshrec.registration.batch import refine_rigid_batch
@@ -49,8 +50,8 @@ def _items(values, cls: type, name: str) -> list:
     return [check_instance(v, cls, f"{name}[{k}]") for k, v in enumerate(values)]
 
 
-@dataclass(frozen=True)
-class RefinedSearch:
+@dataclass(frozen=True, eq=False)
+class RefinedSearch(ValueEquality):
     """The rigid refinement of one local search's result.
 
     Attributes
@@ -65,8 +66,8 @@ class RefinedSearch:
     refinement: Refinement = field(repr=False)
 
 
-@dataclass(frozen=True)
-class PoseHypothesis:
+@dataclass(frozen=True, eq=False)
+class PoseHypothesis(ValueEquality):
     """One refined pose of the touch on the model.
 
     Attributes

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.registration.damping import (
     after_accept,
     after_reject,
@@ -48,8 +49,8 @@ __all__ = ["OffsetRefinement", "Refinement", "refine_offset", "refine_rigid"]
 _RCOND = 1e-6
 
 
-@dataclass(frozen=True)
-class Refinement:
+@dataclass(frozen=True, eq=False)
+class Refinement(ValueEquality):
     """Result of the rigid refinement.
 
     Attributes
@@ -69,8 +70,8 @@ class Refinement:
     iterations: int
 
 
-@dataclass(frozen=True)
-class OffsetRefinement:
+@dataclass(frozen=True, eq=False)
+class OffsetRefinement(ValueEquality):
     """Result of :func:`refine_offset`: a rigid transform and an outward offset.
 
     Attributes

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.contact.geometry import LocalGeometry, RoughFitWarning, estimate_local_geometry
 from meshrec.io.checks import (
     check_choice,
@@ -74,8 +75,8 @@ class StageTimes:
         )
 
 
-@dataclass(frozen=True)
-class Registration:
+@dataclass(frozen=True, eq=False)
+class Registration(ValueEquality):
     """The best superposition of the touch data on one model.
 
     Attributes
@@ -145,8 +146,8 @@ class Registration:
     candidates: int
     raw_hits: int
     searches: int
-    seconds: float
-    times: StageTimes = field(default_factory=StageTimes)
+    seconds: float = field(compare=False)
+    times: StageTimes = field(default_factory=StageTimes, compare=False)
     reason: str = ""
     candidate_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     search_paths: tuple[np.ndarray, ...] = field(default=(), repr=False)
@@ -316,8 +317,8 @@ def register(
     return register_full(model, coarse, method=method, searches=searches, trace=trace)
 
 
-@dataclass(frozen=True)
-class CoarseRegistration:
+@dataclass(frozen=True, eq=False)
+class CoarseRegistration(ValueEquality):
     """The first stages of a registration (lookup, phi, screening) on one model.
 
     Attributes
@@ -339,8 +340,8 @@ class CoarseRegistration:
     candidates: ContactCandidates = field(repr=False)
     brackets: PhiBrackets | None = field(default=None, repr=False)
     screening: Screening | None = field(default=None, repr=False)
-    seconds: float = 0.0
-    times: dict = field(default_factory=dict, repr=False)
+    seconds: float = field(default=0.0, compare=False)
+    times: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def rejected(self) -> bool:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_instance
 from meshrec.model.index import ModelIndex
 from meshrec.registration.batch import refine_rigid_batch
@@ -23,8 +24,8 @@ from meshrec.registration.transform import superposition
 __all__ = ["Screening", "screen_candidates"]
 
 
-@dataclass(frozen=True)
-class Screening:
+@dataclass(frozen=True, eq=False)
+class Screening(ValueEquality):
     """The screened candidates, best first.
 
     Attributes

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.registration.chart import SurfaceChart, SurfacePoint, rotation_z
 from meshrec.registration.objective import residuals
 
@@ -26,8 +27,8 @@ __all__ = ["SEARCH_METHODS", "LocalSearch", "chart_residuals", "local_search"]
 SEARCH_METHODS = ("lm", "steepest")
 
 
-@dataclass(frozen=True)
-class LocalSearch:
+@dataclass(frozen=True, eq=False)
+class LocalSearch(ValueEquality):
     """Result of one local search.
 
     Attributes

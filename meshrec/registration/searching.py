@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshrec import defaults
+from meshrec._values import ValueEquality
 from meshrec.io.checks import check_choice, check_instance, check_int, check_number
 from meshrec.model.index import ModelIndex
 from meshrec.registration.lookup import ContactCandidates
@@ -26,8 +27,8 @@ from meshrec.registration.search import SEARCH_METHODS, LocalSearch, local_searc
 __all__ = ["SearchRun", "Searches", "search_candidates"]
 
 
-@dataclass(frozen=True)
-class SearchRun:
+@dataclass(frozen=True, eq=False)
+class SearchRun(ValueEquality):
     """One local search.
 
     Attributes
@@ -45,8 +46,8 @@ class SearchRun:
     result: LocalSearch = field(repr=False)
 
 
-@dataclass(frozen=True)
-class Searches:
+@dataclass(frozen=True, eq=False)
+class Searches(ValueEquality):
     """The local searches run, in the order run.
 
     Attributes

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from meshrec._values import ValueEquality
 from meshrec.registration.brackets import PhiBrackets
 from meshrec.registration.lookup import ContactCandidates
 from meshrec.registration.phi import PhiSearch
@@ -14,8 +15,8 @@ from meshrec.registration.searching import Searches
 __all__ = ["RegistrationTrace"]
 
 
-@dataclass(frozen=True)
-class RegistrationTrace:
+@dataclass(frozen=True, eq=False)
+class RegistrationTrace(ValueEquality):
     """The stages' outputs of one registration (``register(..., trace=True)``).
 
     Attributes
