@@ -274,8 +274,10 @@ def pose_sigma(
         raise ValueError(f"noise must be a positive finite number, got {noise!r}")
     if not (isinstance(ess_fraction, (int, float)) and 0.0 < ess_fraction <= 1.0):
         raise ValueError(f"ess_fraction must be a number in (0, 1], got {ess_fraction!r}")
-    if not isinstance(leave_out, (int, np.integer)) or isinstance(leave_out, bool) or not (
-        0 <= leave_out <= 5
+    if (
+        not isinstance(leave_out, (int, np.integer))
+        or isinstance(leave_out, bool)
+        or not (0 <= leave_out <= 5)
     ):
         raise ValueError(f"leave_out must be an integer in 0 to 5, got {leave_out!r}")
     _, s, vt = np.linalg.svd(J, full_matrices=False)

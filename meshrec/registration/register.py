@@ -495,8 +495,7 @@ def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float,
             raw_hits=0,
             searches=0,
             reason=(
-                f"no surface site with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup "
-                "tolerance"
+                f"no surface site with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance"
             ),
             **common,
         )

@@ -98,8 +98,11 @@ def screen_candidates(
         starts.append((int(i), phi))
     # All the candidates' refinements in lockstep, one distance query per round (the same
     # arithmetic per candidate as refine_rigid, so the same results).
-    quick = refine_rigid_batch(model, sub_points, np.array(T0s).reshape(-1, 4, 4),
-                               max_iter=iterations) if starts else []
+    quick = (
+        refine_rigid_batch(model, sub_points, np.array(T0s).reshape(-1, 4, 4), max_iter=iterations)
+        if starts
+        else []
+    )
     screened = [(q.error, i, phi) for q, (i, phi) in zip(quick, starts, strict=True)]
     screened.sort(key=lambda s: (s[0], s[1]))
     return Screening(
