@@ -20,6 +20,7 @@ from meshrec import defaults
 from meshrec.bench import paper_touch
 from meshrec.recognition import jobs as jobs_module
 from meshrec.recognition import recognize as recognize_module
+from meshrec.registration.register import touch_geometry
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 SCRIPT = Path(sys.executable).with_name("meshrec")
@@ -345,6 +346,17 @@ def test_repeated_samples_are_counted_once(surfaces):
     assert rec.noise == plain.noise
     assert rec.touch.n_points == sim.touch.n_points
     assert any("counted once" in w for w in rec.warnings)
+    # a geometry estimated on the copies (the command line, --batch and the service
+    # estimate it early, to refuse bad data before indexing) is estimated again: it read
+    # the noise low (0.000392 against 0.000654 on a probe's ellipsoid touch) and gave
+    # `ambiguous` there
+    early = touch_geometry(logged)
+    assert early.noise_rms < 0.8 * plain.geometry.noise_rms
+    with pytest.warns(meshrec.RepeatedSamplesWarning):
+        given = meshrec.recognize(logged, surfaces, geometry=early)
+    assert given.noise == plain.noise
+    assert given.verdict == "recognised"
+    assert given.geometry == plain.geometry
 
 
 def test_touches_in_two_frames_name_the_best_joint_fit_in_the_reason(surfaces):

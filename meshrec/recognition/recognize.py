@@ -211,7 +211,10 @@ def recognize(
         Called as ``progress(i, n, name)`` before each model is registered.
     geometry : LocalGeometry or sequence of LocalGeometry, optional
         The local geometry at each touch's contact, if already estimated (by
-        :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise.
+        :func:`meshrec.registration.register.touch_geometry`); estimated here otherwise,
+        and also for a touch whose exactly repeated samples are removed (see
+        :class:`RepeatedSamplesWarning`): a geometry given for it was estimated on the
+        copies, which read the noise low.
     probe_radius : float, optional
         Radius of the probe's ball tip, data units (the data are the ball's centres, on
         the surface offset outwards by it): the models are compared with their offset
@@ -281,7 +284,12 @@ def recognize(
         t0 = time.perf_counter()
         touches = _touches(touch)
         geometries = _geometries(geometry, len(touches))
-        touches, repeats = _without_repeats(touches)
+        touches, repeats, thinned = _without_repeats(touches)
+        # a geometry estimated on the copies read their noise (a CLI's early estimate,
+        # made to refuse bad data before any model is indexed): estimated again
+        geometries = tuple(
+            None if cut else g for g, cut in zip(geometries, thinned, strict=True)
+        )
         check_choice(method, SEARCH_METHODS, "method")
         if progress is not None and not callable(progress):
             raise TypeError(f"progress must be callable or None, got {type(progress).__name__}")
@@ -601,13 +609,15 @@ def _touches(touch) -> tuple[TouchData, ...]:
     return tuple(touch)
 
 
-def _without_repeats(touches: tuple) -> tuple[tuple, list[str]]:
+def _without_repeats(touches: tuple) -> tuple[tuple, list[str], tuple[bool, ...]]:
     """The touches without samples that repeat the one before them exactly
-    (:meth:`TouchData.without_repeats`), and a note for each touch that had some."""
-    out, notes = [], []
+    (:meth:`TouchData.without_repeats`), a note for each touch that had some, and
+    whether each had some."""
+    out, notes, thinned = [], [], []
     for k, t in enumerate(touches):
         kept, removed = t.without_repeats()
         out.append(kept)
+        thinned.append(bool(removed))
         if removed:
             which = "the touch" if len(touches) == 1 else f"touch {k + 1}"
             notes.append(
@@ -615,7 +625,7 @@ def _without_repeats(touches: tuple) -> tuple[tuple, list[str]]:
                 "exactly (a logger faster than its sensor, or a probe resting) and were "
                 "counted once: copies carry no new measurement"
             )
-    return tuple(out), notes
+    return tuple(out), notes, tuple(thinned)
 
 
 def _geometries(geometry, n: int) -> tuple:
