@@ -342,8 +342,16 @@ def test_cli_gives_the_point_in_the_touches_unit(world, tmp_path, capsys):
     assert doc["units"] == "mm"
     np.testing.assert_allclose(doc["point"], 1000.0 * want.point, rtol=1e-12)
     np.testing.assert_allclose(doc["direction"], want.direction, rtol=1e-12)
+    # the reason names the same point, in mm and labelled (it gave the metres, unlabelled)
+    from meshrec.recognition.advice import point_text
+
+    assert f"touch at {point_text(1000.0 * want.point)} mm approaching" in doc["reason"]
+    assert point_text(want.point) not in doc["reason"]
+    assert "model units" not in doc["reason"]
     assert main(["next-touch", str(mm), *common]) == 0
-    assert " mm, approaching along " in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert " mm, approaching along " in text
+    assert f"touch at {point_text(1000.0 * want.point)} mm approaching" in text
     # without a unit for the touch, the point is in the models' unit, and says so
     assert main(["next-touch", str(world["touch"]), *common[:-2], "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["units"] == "m"

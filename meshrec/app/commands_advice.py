@@ -90,7 +90,7 @@ def advice_to_json(
         "direction": None if advice.direction is None else advice.direction.tolist(),
         "expected_gain": float(advice.expected_gain),
         "models": list(advice.models),
-        "reason": advice.reason,
+        "reason": _reason_in_touch_units(advice, units, models_units),
         "criterion": advice.criterion,
         "verdict": verdict,
     }
@@ -109,6 +109,19 @@ def _in_touch_units(point, units: str | None, models_units: str | None):
     from meshrec.recognition.units import unit_factor
 
     return point * unit_factor(models_units, units)
+
+
+def _reason_in_touch_units(advice, units: str | None, models_units: str | None) -> str:
+    """The advice's reason with its point in the touches' unit, labelled, and its model
+    units named, where :func:`_in_touch_units` converts the point (the reason is written
+    in the models' unit, in which the advice is computed)."""
+    if advice.point is None or units is None or models_units is None:
+        return advice.reason
+    from meshrec.recognition.advice import point_text
+
+    shown = point_text(_in_touch_units(advice.point, units, models_units))
+    reason = advice.reason.replace(point_text(advice.point), f"{shown} {units}")
+    return reason.replace("model units", models_units)
 
 
 def run_advice(args, out) -> int:
@@ -179,5 +192,6 @@ def run_advice(args, out) -> int:
                 f"next touch: at {at}, approaching along {d} "
                 f"({advice.criterion}, expected gain {advice.expected_gain:.3g} nats)\n"
             )
-        out.write(f"{advice.reason}  ({rec.seconds + advice.seconds:.2f} s)\n")
+        reason = _reason_in_touch_units(advice, touch_units, units)
+        out.write(f"{reason}  ({rec.seconds + advice.seconds:.2f} s)\n")
     return 0 if advice.point is not None else 1

@@ -45,7 +45,7 @@ from meshrec.model.library import ModelLibrary
 from meshrec.recognition.recognize import Recognition
 from meshrec.recognition.scoring import effective_points
 
-__all__ = ["CRITERIA", "TouchAdvice", "next_touch"]
+__all__ = ["CRITERIA", "TouchAdvice", "next_touch", "point_text"]
 
 #: The two criteria a touch is chosen by.
 CRITERIA = ("separate", "pose")
@@ -97,7 +97,7 @@ class TouchAdvice(ValueEquality):
         if self.point is None:
             where = "point=None"
         else:
-            where = f"point={_fmt(self.point)}, direction={_fmt(self.direction)}"
+            where = f"point={point_text(self.point)}, direction={point_text(self.direction)}"
         return (
             f"TouchAdvice({self.criterion!r}, {where}, "
             f"expected_gain={self.expected_gain:.3g}, models={list(self.models)}, "
@@ -252,7 +252,7 @@ def next_touch(
     points = np.vstack([np.vstack(t.curves) for t in touches])
     gain = _pose_gain(best, points, cand, half, noise)
     k = int(np.argmax(gain))
-    where = f"touch at {_fmt(cand.world[k])} approaching along {_fmt(cand.approach[k])}"
+    where = f"touch at {point_text(cand.world[k])} approaching along {point_text(cand.approach[k])}"
     if note is None:
         if recognition.verdict == "recognised":
             lead = f"recognised as {top}"
@@ -564,7 +564,7 @@ def _separate(hyps, cand: _Candidates, half: float, n_eff: float, noise: float):
 
 def _separate_reason(hyps, cand: _Candidates, k: int, D: np.ndarray, verdict: str) -> str:
     """One sentence for a separating touch (``D``: the candidate's (H, H) separations)."""
-    where = f"touch at {_fmt(cand.world[k])} approaching along {_fmt(cand.approach[k])}"
+    where = f"touch at {point_text(cand.world[k])} approaching along {point_text(cand.approach[k])}"
     lead = "no model fits well (unknown), but " if verdict == "unknown" else ""
     return (
         f"{lead}{where}: the {_pose_words(hyps)} lie up to "
@@ -638,5 +638,15 @@ def _apply(T: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ T[:3, :3].T + T[:3, 3]
 
 
-def _fmt(v) -> str:
+def point_text(v) -> str:
+    """A point or direction as the advice's reasons write it: ``(x, y, z)``, 4 digits.
+
+    Parameters
+    ----------
+    v : (3,) float
+
+    Returns
+    -------
+    str
+    """
     return "(" + ", ".join(f"{x:.4g}" for x in np.asarray(v, dtype=np.float64)) + ")"
