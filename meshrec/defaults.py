@@ -817,6 +817,15 @@ PROBE_OFFSET_MIN_NOISE = 3.0
 #: a tube, one touch, above 1 (the fit reaches the noise); a torus against a library of
 #: look-alikes it is not in, 0.10; a tomato-can scan with no tip, 0.31.
 PROBE_OFFSET_EXPLAINED = 0.5
+#: ... and, where the best R lies at the end of the range tried (at least this fraction of
+#: R_max: no estimate, only a bound), the offset surface fits the data to the noise (fit
+#: p-value at least WIDEN_P_VALUE). Measured (stop 31, one touch of each paper surface
+#: against the three others, seeds 0 to 5): 11 of 23 such out-of-folder touches were
+#: warned, every one with R at R_max, and all 11 still fit 1.19 to 11.7 times the noise
+#: with the offset (p below WIDEN_P_VALUE): none warns now; four touches with a real tip
+#: larger than R_max (0.2 and 0.3 on R_max 0.13 to 0.26) ended at R_max too, fitting at
+#: 0.95 to 1.11 times it, and still warn.
+PROBE_OFFSET_BOUND_FRACTION = 0.98
 # --------------------------------------------------------------------------- scale
 #: The scale benchmark's blobs (meshrec.bench.blobs): icosphere subdivisions (4: 5,120
 #: faces, 2,562 vertices), the degree of the smooth radial field (a polynomial of the unit

@@ -20,6 +20,7 @@ from meshrec import defaults
 from meshrec.contact.probe import ProbeOffsetWarning, check_probe_radius
 from meshrec.io.checks import check_number
 from meshrec.model.probe import probe_model
+from meshrec.recognition.scoring import fit_p_value
 from meshrec.registration.refine import refine_offset, refine_rigid
 
 __all__ = [
@@ -48,12 +49,15 @@ class ProbeOffset:
         predict with any pose and any R
         (:attr:`~meshrec.registration.refine.OffsetRefinement.linear_drop`), squared data
         units: below ``min_gain * noise**2`` the joint refinement was skipped.
+    radius_max : float
+        The largest R tried (``R_max`` of :func:`probe_offset`), data units.
     """
 
     radius: float
     rms0: float
     rms: float
     linear_drop: float
+    radius_max: float = float("nan")
 
 
 def touch_probe_radius(touches, probe_radius) -> float:
@@ -202,8 +206,8 @@ def probe_offset(
     else:
         radius, rms = joint.radius, joint.rms
     if not rms < rigid.rms:
-        return ProbeOffset(0.0, rigid.rms, rigid.rms, joint.linear_drop)
-    return ProbeOffset(radius, rigid.rms, rms, joint.linear_drop)
+        return ProbeOffset(0.0, rigid.rms, rigid.rms, joint.linear_drop, r_max)
+    return ProbeOffset(radius, rigid.rms, rms, joint.linear_drop, r_max)
 
 
 def _parabola_search(points, model, T_model_touch, r_max: float, rms0: float):
@@ -309,6 +313,14 @@ def warn_probe_offset(rec, models) -> ProbeOffset | None:
         # wrong (a torus touched against a library of bumped spheres and ellipsoids, RMS
         # 27 times the noise, was trimmed by 5% at an "offset" of 0.08), and suggesting
         # one would mislead.
+        return found
+    if radius >= defaults.PROBE_OFFSET_BOUND_FRACTION * found.radius_max and (
+        fit_p_value(rms, n, rec.noise) < defaults.WIDEN_P_VALUE
+    ):
+        # R at the end of its range is a bound, not an estimate, and the offset surface
+        # still misfits: any added parameter trims a misfit that has another cause (an
+        # ellipsoid touched against the other paper surfaces: R at R_max, 11.7 times the
+        # noise left; suggesting the tip would invite a wrong model to fit).
         return found
     warnings.warn(
         f"the data lie about {radius:.3g} outside the surface of {best.model!r} (they fit "
