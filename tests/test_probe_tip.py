@@ -487,3 +487,23 @@ def test_probe_offset_refuses_bad_noise_and_min_gain(models, kwargs, message):
     sim = _touch(models["sphere"], 0.0)
     with pytest.raises(ValueError, match=message):
         probe_offset(sim.touch.points, models["sphere"], sim.T_model_touch, **kwargs)
+
+
+def test_no_tip_is_suggested_for_an_object_not_in_the_library(surfaces):
+    # one ellipsoid touch against the three other paper surfaces: `unknown`. The best
+    # offset lay at the end of the range tried (a bound, not an estimate) and the data
+    # still misfit the offset surface 11.7 times the noise, yet a ball tip was suggested,
+    # which would have let a wrong model fit (11 of 23 such touches warned)
+    others = [m for m in surfaces if m.name != "ellipsoid"]
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=5)
+    rec, caught = _recognise(sim.touch, others)
+    assert rec.verdict == "unknown"
+    assert not caught
+    found = rec.probe_offset
+    assert found.radius >= defaults.PROBE_OFFSET_BOUND_FRACTION * found.radius_max
+    assert found.rms > 4.0 * rec.noise
+    assert found.radius_max == pytest.approx(
+        defaults.PROBE_OFFSET_MAX_FRACTION
+        * np.linalg.norm(sim.touch.points - sim.touch.points.mean(axis=0), axis=1).max(),
+        rel=1e-9,
+    )
