@@ -10,6 +10,7 @@ known without the advice's own machinery.
 import dataclasses
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -413,3 +414,44 @@ def test_surface_sampler_is_trimesh_s(seed):
     )
     np.testing.assert_array_equal(ours[0], theirs[0])
     np.testing.assert_array_equal(ours[1], theirs[1])
+
+
+def test_the_advised_line_meets_the_likely_models(surfaces):
+    # a probe's case: one ellipsoid touch at a random world pose, `ambiguous` (ellipsoid
+    # 0.855, elliptic paraboloid 0.145). The separating touch was placed on the
+    # paraboloid, and its whole line passed 0.44 from the ellipsoid, the truth: a robot
+    # following it would touch nothing. If a hypothesis is the truth, the touch lands
+    # where the line first meets it; the line must meet the likely ones.
+    from scipy.spatial.transform import Rotation
+
+    seed = 101
+    rng = np.random.default_rng(seed)
+    T_world_model = np.eye(4)
+    T_world_model[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    T_world_model[:3, 3] = rng.uniform(-100, 100, 3) * 0.03
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=seed * 100, transform=False)
+    touch = sim.touch.transformed(T_world_model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touch, surfaces)
+        advice = next_touch(rec, surfaces, rng=seed)
+    assert rec.verdict == "ambiguous"
+    assert advice.criterion == "separate"
+    met = 0.0
+    for score in rec.scores:
+        if score.probability < 0.05:
+            continue
+        T = score.poses[0].T_model_touch
+        start = advice.point - 10.0 * advice.direction
+        origin = T[:3, :3] @ start + T[:3, 3]
+        direction = T[:3, :3] @ advice.direction
+        _, hit = surfaces[score.model].surface.first_hits(origin[None], direction[None])
+        met += score.probability * float(hit[0])
+    assert met >= 0.5
+    # the line meets the true object too
+    T = np.linalg.inv(T_world_model)
+    origin = T[:3, :3] @ (advice.point - 10.0 * advice.direction) + T[:3, 3]
+    _, hit = surfaces["ellipsoid"].surface.first_hits(
+        origin[None], (T[:3, :3] @ advice.direction)[None]
+    )
+    assert hit[0]

@@ -183,6 +183,55 @@ class AabbSurface:
             closest[order] = closest_s
         return np.sqrt(np.maximum(sqr, 0.0)), closest, face.astype(np.int64, copy=False)
 
+    def first_hits(
+        self, origins: np.ndarray, directions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Where rays first meet the mesh's faces, via the AABB tree.
+
+        libigl's ``AABB.intersect_ray_first``, batched (one tree, every ray; the
+        simulator's one-ray :func:`meshrec.sim.probe.first_hit` checks every face).
+
+        Parameters
+        ----------
+        origins : (n, 3) float
+            The rays' starts, model coordinates.
+        directions : (n, 3) float
+            Their directions (unit length); a ray is ``origin + t direction``, t >= 0.
+
+        Returns
+        -------
+        points : (n, 3) float64
+            The first hits (NaN where a ray misses the mesh).
+        hit : (n,) bool
+            Whether each ray meets the mesh.
+
+        Raises
+        ------
+        ValueError
+            If ``origins`` or ``directions`` is not an (n, 3) array of finite numbers, or
+            they differ in length.
+        """
+        starts = np.ascontiguousarray(origins, dtype=np.float64)
+        dirs = np.ascontiguousarray(directions, dtype=np.float64)
+        for name, a in (("origins", starts), ("directions", dirs)):
+            if a.ndim != 2 or a.shape[1] != 3:
+                raise ValueError(f"{name} must have shape (n, 3), got {a.shape}")
+            if not np.isfinite(a).all():
+                raise ValueError(f"{name} must be finite, got NaN or inf")
+        if len(starts) != len(dirs):
+            raise ValueError(
+                "origins and directions must have the same length, got "
+                f"{len(starts)} and {len(dirs)}"
+            )
+        points = np.full((len(starts), 3), np.nan)
+        if not len(starts):
+            return points, np.zeros(0, dtype=bool)
+        V, F = self.mesh.vertices, self.mesh.faces
+        face, t, _ = self._tree().intersect_ray_first(V, F, starts, dirs)
+        hit = (np.asarray(face) >= 0) & np.isfinite(t)
+        points[hit] = starts[hit] + t[hit, None] * dirs[hit]
+        return points, hit
+
     def smooth_offsets(self, closest: np.ndarray, face: np.ndarray) -> np.ndarray:
         """Height of the smooth surface implied by the corner normals above the flat faces.
 
