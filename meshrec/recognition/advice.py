@@ -7,8 +7,9 @@ of free space around its approach ray; an optional direction hint says where the
 can come from; a place already touched tells nothing new), and each candidate is scored:
 
 - ``"separate"``: the expected information gain about which hypothesis is true (mutual
-  information, nats). If hypothesis ``h`` is the truth, the next touch lands on ``h``'s
-  surface near the candidate; a small patch of points there (three chords of the curves'
+  information, nats). If hypothesis ``h`` is the truth, the next touch lands where the
+  candidate's approach line first meets ``h``'s surface (nothing is learnt under ``h``
+  where it misses); a small patch of points there (three chords of the curves'
   length) lies at RMS distance ``d(h, h')`` from every other hypothesis ``h'``, and the
   posterior after the touch is ``p(h' | h) ~ w_h' exp(-n_eff d(h, h')^2 / (2 noise^2))``
   (the likelihood of :mod:`meshrec.recognition.scoring`). The gain is
