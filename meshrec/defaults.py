@@ -525,6 +525,10 @@ CONFIRM_MOVED_FRACTION = 0.05
 #: left the touched model out and another was named with probability 1; the YCB scans
 #: (default touches) up to 5.3 across rims and box edges.
 CURVATURE_MAX_TURN = 2.0
+#: A RoughFitWarning also names the curves' length as a possible cause when they turn by
+#: more than this (radians over their half-length at the estimated curvature): curves 1.6
+#: long on the bundled ellipsoid (1.95) were told only that they might cross an edge.
+ROUGH_FIT_LONG_TURN = 1.0
 #: A lookup window this many times the calibrated one holds every site of any model.
 LOOKUP_OPEN_SCALE = 1e6
 #: One touch whose noise (LocalGeometry.noise_rms, the noise its samples show) is more

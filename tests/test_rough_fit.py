@@ -46,6 +46,17 @@ def test_register_and_recognize_warn_across_an_edge(shapes):
         meshrec.recognize(touch, shapes)
 
 
+def test_long_curves_on_a_smooth_surface_are_told_so(surfaces):
+    # curves 1.6 long on the bundled ellipsoid (a probe's touch): no edge anywhere, but
+    # the fits cannot follow the bend; the warning spoke of edges and rims only
+    sim = meshrec.simulate_touch(surfaces["ellipsoid"], rng=43, length=1.6)
+    g = meshrec.estimate_local_geometry(sim.touch.curves)
+    turn = max(abs(g.k1), abs(g.k2)) * g.half_length
+    assert turn > defaults.ROUGH_FIT_LONG_TURN
+    with pytest.warns(meshrec.RoughFitWarning, match=r"long for the surface's bend .*turn by"):
+        meshrec.register(sim.touch, surfaces["ellipsoid"])
+
+
 def test_no_warning_on_one_smooth_patch_or_without_noise(shapes):
     smooth = meshrec.simulate_touch(shapes["can"], rng=0, contact=[1.0, 0.0, 0.0], noise=1e-3)
     clean = meshrec.simulate_touch(shapes["can"], rng=0, contact=[1.0, 0.0, 0.0], noise=0.0)

@@ -199,7 +199,9 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
         If the curve fits leave more than ``defaults.ROUGH_FIT_RATIO`` times the noise
         that the samples show (and more than ``defaults.ROUGH_FIT_MIN_FRACTION`` of the
         half-length): the curves may cross an edge or a rim, where the recognition is
-        less reliable.
+        less reliable; where they turn by more than ``defaults.ROUGH_FIT_LONG_TURN``
+        radians over their half-length at the estimated curvature, it also says they may
+        be long for the surface's bend.
     """
     check_instance(touch, TouchData, "touch")
     g = estimate_local_geometry(touch.curves, point=touch.contact, normal=touch.normal)
@@ -207,11 +209,18 @@ def touch_geometry(touch: TouchData) -> LocalGeometry:
     if ratio > defaults.ROUGH_FIT_RATIO and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * (
         g.half_length
     ):
+        turn = max(abs(float(g.k1)), abs(float(g.k2))) * float(g.half_length)
+        long = (
+            f", or they are long for the surface's bend (at the curvature estimated they "
+            f"turn by {turn:.3g} radians over their half-length: shorter curves fit better)"
+            if turn > defaults.ROUGH_FIT_LONG_TURN
+            else ""
+        )
         warnings.warn(
             f"the curves fit no smooth surface patch: the curve fits leave {g.fit_rms:.3g}, "
             f"{ratio:.3g} times the noise the samples show ({g.noise_rms:.3g}; "
             f"defaults.ROUGH_FIT_RATIO = {defaults.ROUGH_FIT_RATIO:g}): they may cross an "
-            "edge or a rim, where the curvature estimate and the recognition are less "
+            f"edge or a rim{long}, where the curvature estimate and the recognition are less "
             "reliable; touch again away from edges",
             RoughFitWarning,
             stacklevel=3,
