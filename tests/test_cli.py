@@ -374,3 +374,15 @@ def test_an_unknown_answer_does_not_call_its_best_fits_pose_precise(tmp_path, ca
     assert lines[-1].startswith("unknown: not in the library (best fit: sphere)")
     assert any(ln.startswith("pose of the best fit (it misses the data): ") for ln in lines)
     assert not any(ln.startswith("pose: ") for ln in lines)
+
+
+@pytest.mark.parametrize("command", ["recognize", "serve", "next-touch", "index"])
+def test_models_help_names_every_bundled_set(command, capsys):
+    # `serve --help` named two of the four bundled sets
+    from meshrec.model.library import bundled_model_sets
+
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "see 'meshrec models'" in text
+    for name in bundled_model_sets():
+        assert name in text.split("bundled set (")[1].split(";")[0]

@@ -80,8 +80,8 @@ def _parser() -> argparse.ArgumentParser:
             "--models",
             default=None,
             metavar="DIR|SET",
-            help="folder of model meshes, or the name of a bundled set (surfaces, objects; "
-            "see 'meshrec models'); default: the bundled paper surfaces",
+            help="folder of model meshes, or the name of a bundled set (surfaces, objects, "
+            "parts, primitives; see 'meshrec models'); default: the bundled paper surfaces",
         )
         sp.add_argument(
             "--model-units",

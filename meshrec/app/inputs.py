@@ -83,7 +83,8 @@ def model_folder(text: str | Path | None) -> Path:
     """The model folder named by ``--models``: a path, or the name of a bundled set.
 
     An existing path wins; a plain name (no ``/``) that is not a path names a bundled set
-    (``surfaces``, ``objects``). None gives the bundled paper surfaces.
+    (``surfaces``, ``objects``, ``parts``, ``primitives``). None gives the bundled paper
+    surfaces.
 
     Raises
     ------
