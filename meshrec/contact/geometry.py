@@ -872,7 +872,9 @@ def estimate_local_geometry(
         raise ValueError(
             f"the curves are nearly parallel at p: the tangents of curves[{wi}] and "
             f"curves[{wj}] are {min_angle:.3g} degrees apart (modulo 180), less than "
-            f"defaults.MIN_TANGENT_ANGLE_DEG = {defaults.MIN_TANGENT_ANGLE_DEG}"
+            f"defaults.MIN_TANGENT_ANGLE_DEG = {defaults.MIN_TANGENT_ANGLE_DEG} (or p lies on "
+            "a sharp edge or rim, where every curve bends and its tangent at p is not "
+            "defined: touch away from it)"
         )
 
     # normal: least-squares direction perpendicular to all tangents
