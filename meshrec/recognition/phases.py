@@ -84,7 +84,9 @@ class PhaseTimes:
     widened : float
         The widened lookup pass and its scores (0 when the first pass fit the noise).
     dense : float
-        One touch: the dense pass and its scores (0 when the widened pass fit).
+        One touch: the dense passes and their scores: after a widened pass that still fit
+        nothing, and the confirmation of the named model's search before a ``recognised``
+        answer (0 when neither ran).
     scoring : float
         The scores, the flat prior, the verdict and its cautions.
     freedom : float
