@@ -104,7 +104,9 @@ class Recognition(ValueEquality):
         Of ``seconds``, the time spent on the scores and the verdict (without a widened
         second lookup, which is counted in ``widened_seconds``).
     widened_seconds : float
-        Time of the second, widened lookup pass (0 when the first pass fit the noise).
+        Time of the later passes: the widened lookup (when the first pass fit no model to
+        the noise), the dense one after it, and the confirmation of a one-touch answer's
+        search before it is ``recognised``; 0 when none ran.
     touches : tuple of TouchData
         Every touch recognised, in the order given (``touch`` is the first); all in one
         frame, the frame of every ``T_model_touch``.
