@@ -502,10 +502,10 @@ def _landings(h: _Hypothesis, world: np.ndarray, approach: np.ndarray):
     """Where the probe, moving along each candidate's approach line from outside, first
     meets hypothesis ``h``'s surface: ``(points (n, 3), model frame; hit (n,) bool)``.
 
-    The line is followed from a start beyond ``h``'s whole mesh (its farthest vertex from
-    the candidate, in the world frame, plus that much again) so that ``h``'s first face
-    along it is the one the probe would touch; a line that misses ``h`` touches nothing
-    if ``h`` is the truth.
+    The line is followed from a start beyond ``h``'s whole mesh (the distance from the
+    candidate to the centre of ``h``'s bounding box plus its whole diagonal: farther than
+    any of ``h``'s points) so that ``h``'s first face along it is the one the probe would
+    touch; a line that misses ``h`` touches nothing if ``h`` is the truth.
     """
     V = h.model.mesh.vertices
     centre = _apply(h.T_world_model, 0.5 * (V.min(axis=0) + V.max(axis=0))[None])[0]
