@@ -943,6 +943,18 @@ def _widened(
     return dataclasses.replace(rec, ranking=tuple(merged)), capped
 
 
+def _looked_again(rec: Recognition, prior, models: list, method: str, run, phase: str, **kw):
+    """One touch: :func:`_widened` (``kw`` its options), timed as ``phase``, and the scores
+    again: ``(recognition, noise, run)`` (``run`` started here when None)."""
+    if run is None:
+        run = ModelWorkers(models, workers=1)
+    with timed(phase):
+        rec, _ = _widened(rec, {m.name: m for m in models}, method, run, **kw)
+        scores, noise = _score(rec, prior)
+        rec = _ordered(rec, scores)
+    return rec, noise, run
+
+
 def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> Recognition:
     """Several touches: every model's touches registered alone again with the (K, H)
     window widened, jointly refined; each model keeps its better fit.
@@ -1040,17 +1052,8 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             # look once more among more of them (on the models where the window held more
             # than the cap: the others would get the same candidates). Each model keeps
             # its best fit of all.
-            with timed("dense"):
-                rec, _ = _widened(
-                    rec,
-                    by_name,
-                    method,
-                    run,
-                    max_candidates=defaults.LOOKUP_DENSE_CANDIDATES,
-                    only=capped,
-                )
-                scores, noise = _score(rec, prior)
-                rec = _ordered(rec, scores)
+            dense = {"max_candidates": defaults.LOOKUP_DENSE_CANDIDATES, "only": capped}
+            rec, noise, run = _looked_again(rec, prior, models, method, run, "dense", **dense)
             looked = (
                 f"every model registered again, then once more with up to "
                 f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates where the window held more "
@@ -1072,19 +1075,8 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             # is named, the models the lookup alone rejected are registered with the
             # window open (every site a candidate, spread as usual).
             t1 = time.perf_counter()
-            if run is None:
-                run = ModelWorkers(models, workers=1)
-            with timed("widened"):
-                rec, _ = _widened(
-                    rec,
-                    by_name,
-                    method,
-                    run,
-                    only=rejected,
-                    lookup_scale=defaults.LOOKUP_OPEN_SCALE,
-                )
-                scores, noise = _score(rec, prior)
-                rec = _ordered(rec, scores)
+            opened = {"only": rejected, "lookup_scale": defaults.LOOKUP_OPEN_SCALE}
+            rec, noise, run = _looked_again(rec, prior, models, method, run, "widened", **opened)
             t_wide += time.perf_counter() - t1
             found = [r.model for r in rec.ranking if r.model in rejected and not r.rejected]
             cautions.append(
@@ -1095,10 +1087,10 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
                 f"again on every site ({len(found)} registered)"
             )
     if len(rec.touches) == 1 and _would_recognise(rec, prior, n, noise):
-        confirmed, t_confirm = _confirmed(rec, prior, by_name, method, run, models)
+        confirmed, t_confirm = _confirmed(rec, prior, method, run, models)
         t_wide += t_confirm
         if confirmed is not None:
-            rec, scores, noise, caution = confirmed
+            rec, noise, caution = confirmed
             if caution:
                 cautions.append(caution)
     with timed("scoring"):
@@ -1168,7 +1160,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
     )
 
 
-def _confirmed(rec: Recognition, prior, by_name: dict, method: str, run, models: list):
+def _confirmed(rec: Recognition, prior, method: str, run, models: list):
     """One touch about to be ``recognised``: the named model's own search again, with
     ``defaults.CONFIRM_CANDIDATES`` candidates, before its pose is given.
 
@@ -1181,28 +1173,18 @@ def _confirmed(rec: Recognition, prior, by_name: dict, method: str, run, models:
     better of its two fits. Skipped where the window held no more sites than the cap (the
     same candidates again).
 
-    Returns ``(None, seconds)`` when skipped, else ``((recognition, scores, noise,
-    caution), seconds)``; ``caution`` is "" unless the better pose moves the data by more
+    Returns ``(None, seconds)`` when skipped, else ``((recognition, noise, caution),
+    seconds)``; ``caution`` is "" unless the better pose moves the data by more
     than ``defaults.CONFIRM_MOVED_FRACTION`` of the curves' half-length.
     """
     best = rec.ranking[0]
     if best.rejected or best.candidates < defaults.MAX_CANDIDATES:
         return None, 0.0
     t0 = time.perf_counter()
-    if run is None:
-        run = ModelWorkers(models, workers=1)
-    with timed("dense"):
-        rec, _ = _widened(
-            rec,
-            by_name,
-            method,
-            run,
-            max_candidates=defaults.CONFIRM_CANDIDATES,
-            only=frozenset({best.model}),
-            lookup_scale=1.0,
-        )
-        scores, noise = _score(rec, prior)
-        rec = _ordered(rec, scores)
+    # the first pass's window (not widened), more candidates in it
+    looks = {"max_candidates": defaults.CONFIRM_CANDIDATES, "lookup_scale": 1.0}
+    looks["only"] = frozenset({best.model})
+    rec, noise, _ = _looked_again(rec, prior, models, method, run, "dense", **looks)
     after = next(r for r in rec.ranking if r.model == best.model)
     caution = ""
     points = np.c_[rec.touch.points, np.ones(rec.touch.n_points)]
@@ -1217,7 +1199,7 @@ def _confirmed(rec: Recognition, prior, by_name: dict, method: str, run, models:
             f"{defaults.CONFIRM_CANDIDATES} candidates before naming it, found a better pose "
             f"(RMS {after.rms:.3g} against {best.rms:.3g}; the data moved up to {moved:.3g})"
         )
-    return (rec, scores, noise, caution), time.perf_counter() - t0
+    return (rec, noise, caution), time.perf_counter() - t0
 
 
 def _inward_hint(rec: Recognition, reason: str) -> str:
