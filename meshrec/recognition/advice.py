@@ -507,13 +507,19 @@ def _landings(h: _Hypothesis, world: np.ndarray, approach: np.ndarray):
     any of ``h``'s points) so that ``h``'s first face along it is the one the probe would
     touch; a line that misses ``h`` touches nothing if ``h`` is the truth.
     """
+    cast = getattr(h.model.surface, "first_hits", None)
+    if cast is None:
+        # a surface backend without ray casting (the registration's SurfaceQuery does not
+        # ask for it): the candidate's closest point on h, as before stop 31
+        _, closest, _ = h.model.surface.closest_points(_apply(h.T_model_world, world))
+        return closest, np.ones(len(world), dtype=bool)
     V = h.model.mesh.vertices
     centre = _apply(h.T_world_model, 0.5 * (V.min(axis=0) + V.max(axis=0))[None])[0]
     reach = 0.5 * float(np.linalg.norm(np.ptp(V, axis=0)))
     standoff = np.linalg.norm(world - centre, axis=1) + 2.0 * reach
     origins = _apply(h.T_model_world, world - standoff[:, None] * approach)
     directions = approach @ h.T_model_world[:3, :3].T
-    return h.model.surface.first_hits(origins, directions)
+    return cast(origins, directions)
 
 
 def _separations(hyps, world: np.ndarray, approach: np.ndarray, offsets: np.ndarray):
