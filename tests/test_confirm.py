@@ -65,3 +65,18 @@ def test_a_short_touch_is_not_given_a_wrong_fixed_pose(superell, seed):
         for w in rec.warnings
     )
     assert rec.phase_times.dense > 0.0
+
+
+def test_a_free_pose_is_not_confirmed(objects):
+    # a touch on a cylinder's side leaves a slide free: the answer is `ambiguous` with the
+    # model alone whatever a second search finds, so none is made (it cost 0.5 s of every
+    # next-touch on the bundled cylinders)
+    sim = meshrec.simulate_touch(objects["cylinder_2"], rng=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(sim.touch, objects)
+    assert rec.verdict == "ambiguous"
+    assert rec.plausible == ("cylinder_2",)
+    assert rec.pose_freedom.unresolved >= 1
+    assert rec.phase_times.dense == 0.0
+    assert not any("looked at again" in w for w in rec.warnings)

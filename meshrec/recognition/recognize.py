@@ -377,22 +377,7 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     if best is None or best.T_model_touch is None:
         return rec
     model = {m.name: m for m in models}[best.model]
-    points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
-    y = apply_transform(best.T_model_touch, points)
-    # The test is taken at the points' closest points on the surface: the data's noise
-    # across the surface would otherwise pin a turn about a cylinder's axis at the noise.
-    on_surface, normals, at_crease, leaning = _pose_normals(model, y)
-    # Points at a crease are left out (their constraint is one-sided); so are, on a fine
-    # mesh, the points on the thin triangles that touch a crease vertex. On a coarse export
-    # (a 12-triangle box, a cylinder's cap fanned to its rim) every face touches a crease
-    # vertex: then only the points at the crease itself are left out.
-    for over in (at_crease | leaning, at_crease):
-        if np.count_nonzero(~over) >= 6:
-            on_surface, normals = on_surface[~over], normals[~over]
-            break
-    freedom = pose_freedom(on_surface, normals)
-    if freedom.free:
-        freedom = _with_model_symmetries(freedom, model)
+    freedom, on_surface, normals = _free_motions(rec, model)
     sigma = float("inf")
     if freedom.unresolved == 0 and rec.noise is not None and rec.noise > 0:
         # how precisely the data fix the pose, the symmetries' free motions left out
@@ -450,6 +435,29 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
     return dataclasses.replace(
         rec, reason=f"{rec.reason}; the best model's pose is free too ({what})"
     )
+
+
+def _free_motions(rec: Recognition, model):
+    """The rigid motions the data leave free at the best pose, the model's symmetries
+    marked: ``(PoseFreedom, points on the surface (n, 3), their normals (n, 3))``, the
+    points the test used."""
+    points = np.vstack([t.points for t in (rec.touches or (rec.touch,))])
+    y = apply_transform(rec.best.T_model_touch, points)
+    # The test is taken at the points' closest points on the surface: the data's noise
+    # across the surface would otherwise pin a turn about a cylinder's axis at the noise.
+    on_surface, normals, at_crease, leaning = _pose_normals(model, y)
+    # Points at a crease are left out (their constraint is one-sided); so are, on a fine
+    # mesh, the points on the thin triangles that touch a crease vertex. On a coarse export
+    # (a 12-triangle box, a cylinder's cap fanned to its rim) every face touches a crease
+    # vertex: then only the points at the crease itself are left out.
+    for over in (at_crease | leaning, at_crease):
+        if np.count_nonzero(~over) >= 6:
+            on_surface, normals = on_surface[~over], normals[~over]
+            break
+    freedom = pose_freedom(on_surface, normals)
+    if freedom.free:
+        freedom = _with_model_symmetries(freedom, model)
+    return freedom, on_surface, normals
 
 
 def _with_model_symmetries(freedom: PoseFreedom, model) -> PoseFreedom:
@@ -1171,7 +1179,8 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
     were `recognised` with the pose `fixed` and 8 to 34 mm off, the true pose fitting
     better; with 256 candidates the search found it in all five). The model keeps the
     better of its two fits. Skipped where the window held no more sites than the cap (the
-    same candidates again).
+    same candidates again), and where the data leave the pose free (a motion that is not
+    a symmetry of the model): the answer is then ``ambiguous`` anyway.
 
     Returns ``(None, seconds)`` when skipped, else ``((recognition, noise, caution),
     seconds)``; ``caution`` is "" unless the better pose moves the data by more
@@ -1181,6 +1190,13 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
     if best.rejected or best.candidates < defaults.MAX_CANDIDATES:
         return None, 0.0
     t0 = time.perf_counter()
+    with timed("freedom"):
+        # a pose the data leave free (a slide along a cylinder's side) is never
+        # `recognised` (_with_pose_freedom): nothing to confirm, and a cylinder's touch
+        # would pay a second registration for it (0.5 s on the bundled objects)
+        free = _free_motions(rec, {m.name: m for m in models}[best.model])[0].unresolved
+    if free:
+        return None, time.perf_counter() - t0
     # the first pass's window (not widened), more candidates in it
     looks = {"max_candidates": defaults.CONFIRM_CANDIDATES, "lookup_scale": 1.0}
     looks["only"] = frozenset({best.model})
