@@ -20,7 +20,7 @@ from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.bestfirst import fit_best_first
 from meshrec.recognition.cascade import cascade_register
-from meshrec.recognition.edges import warn_sharp_edges
+from meshrec.recognition.edges import patches_touched, warn_sharp_edges
 from meshrec.recognition.flatness import flat_prior
 from meshrec.recognition.freedom import (
     PoseFreedom,
@@ -1094,7 +1094,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
                 f"{len(rejected)} model(s) that the curvature lookup rejected were registered "
                 f"again on every site ({len(found)} registered)"
             )
-    if len(rec.touches) == 1 and _would_recognise(rec, prior, n, noise):
+    if len(rec.touches) == 1 and _would_be_named(rec, prior, n, noise):
         confirmed, t_confirm = _confirmed(rec, prior, method, run, models)
         t_wide += t_confirm
         if confirmed is not None:
@@ -1179,8 +1179,10 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
     were `recognised` with the pose `fixed` and 8 to 34 mm off, the true pose fitting
     better; with 256 candidates the search found it in all five). The model keeps the
     better of its two fits. Skipped where the window held no more sites than the cap (the
-    same candidates again), and where the data leave the pose free (a motion that is not
-    a symmetry of the model): the answer is then ``ambiguous`` anyway.
+    same candidates again), where the data leave the pose free (a motion that is not a
+    symmetry of the model) and where the touch crosses a sharp edge of the model (the
+    answer is then ``ambiguous`` anyway), and where every turn is a symmetry of the model
+    (a sphere: every basin is the same pose).
 
     Returns ``(None, seconds)`` when skipped, else ``((recognition, noise, caution),
     seconds)``; ``caution`` is "" unless the better pose moves the data by more
@@ -1191,11 +1193,17 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
         return None, 0.0
     t0 = time.perf_counter()
     with timed("freedom"):
-        # a pose the data leave free (a slide along a cylinder's side) is never
-        # `recognised` (_with_pose_freedom): nothing to confirm, and a cylinder's touch
-        # would pay a second registration for it (0.5 s on the bundled objects)
-        free = _free_motions(rec, {m.name: m for m in models}[best.model])[0].unresolved
-    if free:
+        # A pose the data leave free (a slide along a cylinder's side) is never
+        # `recognised` (_with_pose_freedom), nor is one touch across a sharp edge of the
+        # model (_across_an_edge): nothing to confirm, and such touches of the bundled
+        # cylinders paid a second registration for it (0.3 to 0.6 s).
+        model = {m.name: m for m in models}[best.model]
+        freedom = _free_motions(rec, model)[0]
+        # every turn a symmetry (a sphere): every basin is the same pose, none to miss
+        free = freedom.unresolved or freedom.turns >= 3
+        points = apply_transform(best.T_model_touch, rec.touch.points)
+        crossed = int(np.sum(patches_touched(model, points)[:, 1] >= defaults.EDGE_MIN_POINTS))
+    if free or crossed > 1:
         return None, time.perf_counter() - t0
     # the first pass's window (not widened), more candidates in it
     looks = {"max_candidates": defaults.CONFIRM_CANDIDATES, "lookup_scale": 1.0}
@@ -1261,6 +1269,13 @@ def _across_an_edge(rec: Recognition, crossed: int) -> Recognition:
             "another model fits; touch again away from the edge, or add touches"
         ),
     )
+
+
+def _would_be_named(rec: Recognition, prior, n: int, noise: float) -> bool:
+    """One touch: whether the scores name one model and the touch's own holds (its noise
+    against its length, curve fits far rougher than the noise) leave it named."""
+    v = _within_calibration(_decided(rec, prior, n, noise), rec)
+    return _rough_hold(v, rec.geometries[0]).verdict == "recognised"
 
 
 def _within_calibration(v: Verdict, rec: Recognition) -> Verdict:
