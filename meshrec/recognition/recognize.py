@@ -424,8 +424,8 @@ def _with_pose_freedom(rec: Recognition, models: list) -> Recognition:
             rec,
             verdict="ambiguous",
             reason=(
-                f"only {best.model} fits the data (probability "
-                f"{rec.probabilities.get(best.model, float('nan')):.3f}), but "
+                f"of the library's models only {best.model} is plausible on the data "
+                f"(probability {rec.probabilities.get(best.model, float('nan')):.3f}), but "
                 f"{'the touch fixes' if len(rec.touches) <= 1 else 'the touches fix'} its "
                 f"pose only up to {what}: the pose reported is one of "
                 "many that fit equally well; touch again across an edge or on a curved part "
