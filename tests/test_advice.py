@@ -10,7 +10,9 @@ known without the advice's own machinery.
 import dataclasses
 import json
 import math
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +23,9 @@ from meshrec import defaults
 from meshrec.app.cli import main
 from meshrec.recognition.advice import TouchAdvice, next_touch
 from meshrec.recognition.scoring import ModelScore, WeightedPose
+
+sys.path.insert(0, str(Path(__file__).parent))
+from surface_backends import DelegatingSurface
 
 #: The bumped sphere differs from the sphere only above this height.
 BUMP_Z = 0.8
@@ -457,32 +462,13 @@ def test_the_advised_line_meets_the_likely_models(surfaces):
     assert hit[0]
 
 
-class _NoRays:
-    """A surface backend with the registration's queries only (no ray casting)."""
-
-    def __init__(self, base):
-        self.base = base
-
-    def closest_points(self, points):
-        return self.base.closest_points(points)
-
-    def interpolated_normals(self, closest, face):
-        return self.base.interpolated_normals(closest, face)
-
-    def smooth_offsets(self, closest, face):
-        return self.base.smooth_offsets(closest, face)
-
-    def smooth_offsets_and_gradients(self, closest, face):
-        return self.base.smooth_offsets_and_gradients(closest, face)
-
-
 def test_a_surface_without_ray_casting_still_gets_advice(world):
     # the advice casts the approach line where the surface backend can (AabbSurface);
     # another SurfaceQuery falls back to the candidate's closest point
     library = world["library"]
     plain = meshrec.ModelLibrary(
         folder=None,
-        models=tuple(dataclasses.replace(m, surface=_NoRays(m.surface)) for m in library),
+        models=tuple(dataclasses.replace(m, surface=DelegatingSurface(m.surface)) for m in library),
     )
     advice = next_touch(world["rec"], plain, rng=1)
     assert advice.point is not None

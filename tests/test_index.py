@@ -3,7 +3,9 @@
 import dataclasses
 import itertools
 import pickle
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +19,9 @@ from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MeshData
 from meshrec.model.record import IndexRecord
 from meshrec.model.surface import AabbSurface, SurfaceQuery
+
+sys.path.insert(0, str(Path(__file__).parent))
+from surface_backends import DelegatingSurface
 
 
 # ----------------------------------------------------------------------------- meshes
@@ -738,29 +743,8 @@ def test_barycentric_matches_a_least_squares_twin_and_clips():
     assert surface._barycentric(np.zeros((0, 3)), np.zeros(0, dtype=np.int64)).shape == (0, 3)
 
 
-class _CountingBackend:
-    """Another surface backend: satisfies SurfaceQuery without inheriting from anything."""
-
-    def __init__(self, inner):
-        self.inner = inner
-        self.calls = 0
-
-    def closest_points(self, points):
-        self.calls += 1
-        return self.inner.closest_points(points)
-
-    def interpolated_normals(self, closest, face):
-        return self.inner.interpolated_normals(closest, face)
-
-    def smooth_offsets(self, closest, face):
-        return self.inner.smooth_offsets(closest, face)
-
-    def smooth_offsets_and_gradients(self, closest, face):
-        return self.inner.smooth_offsets_and_gradients(closest, face)
-
-
 def test_another_surface_backend_can_replace_the_default(sphere_index):
-    backend = _CountingBackend(sphere_index.surface)
+    backend = DelegatingSurface(sphere_index.surface)
     assert isinstance(backend, SurfaceQuery)
     other = dataclasses.replace(sphere_index, surface=backend)
     P = np.array([[0.0, 0.0, 3.0]])

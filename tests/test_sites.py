@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from meshrec import ModelLibrary, recognize, simulate_touch
+from meshrec import ModelLibrary, defaults, recognize, simulate_touch
 from meshrec.model.index import ModelIndex
-from meshrec.recognition.edges import SharpEdgeWarning, patches_touched
+from meshrec.recognition.edges import SharpEdgeWarning, patches_crossed, patches_touched
 from meshrec.registration.lookup import lookup_candidates
 from meshrec.registration.register import touch_geometry
 
@@ -123,3 +123,16 @@ def test_patches_touched_counts_points_per_patch(tmp_path):
     assert rows[0, 0] != rows[1, 0]
     with pytest.raises(ValueError, match=r"points must have shape \(n, 3\)"):
         patches_touched(box, np.zeros((2, 2)))
+
+
+def test_patches_crossed_counts_patches_holding_enough_points(tmp_path):
+    lib = _library(tmp_path, {"box": trimesh.creation.box(extents=(2.0, 2.0, 2.0))})
+    box = lib["box"]
+    n = defaults.EDGE_MIN_POINTS
+    top = np.column_stack([np.linspace(-0.5, 0.5, n), np.zeros(n), np.ones(n)])
+    side = np.column_stack([np.ones(n), np.linspace(-0.5, 0.5, n), np.zeros(n)])
+    assert patches_crossed(box, top) == 1
+    assert patches_crossed(box, np.vstack([top, side])) == 2
+    assert patches_crossed(box, np.vstack([top, side[:1]])) == 1  # one stray point
+    with pytest.raises(ValueError, match=r"points must have shape \(n, 3\)"):
+        patches_crossed(box, np.zeros((2, 2)))

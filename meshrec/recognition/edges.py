@@ -17,7 +17,7 @@ import numpy as np
 from meshrec import defaults
 from meshrec.registration.transform import apply_transform
 
-__all__ = ["SharpEdgeWarning", "patches_touched", "warn_sharp_edges"]
+__all__ = ["SharpEdgeWarning", "patches_crossed", "patches_touched", "warn_sharp_edges"]
 
 
 class SharpEdgeWarning(UserWarning):
@@ -50,6 +50,30 @@ def patches_touched(model, points: np.ndarray) -> np.ndarray:
     return np.column_stack([patch[order], count[order]]).astype(np.int64)
 
 
+def patches_crossed(model, points: np.ndarray) -> int:
+    """How many smooth patches of ``model`` hold at least ``defaults.EDGE_MIN_POINTS`` of
+    the points (a point or two pushed over an edge by the noise do not count): more than
+    1 when the points cross a sharp edge.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    points : (n, 3) float
+        Points in model coordinates.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        If ``points`` is not an (n, 3) array of finite numbers.
+    """
+    rows = patches_touched(model, points)
+    return int(np.sum(rows[:, 1] >= defaults.EDGE_MIN_POINTS))
+
+
 def warn_sharp_edges(rec, models) -> int:
     """A SharpEdgeWarning when the data at the best model's pose cross a sharp edge.
 
@@ -76,8 +100,7 @@ def warn_sharp_edges(rec, models) -> int:
         return 0
     touches = rec.touches or (rec.touch,)
     points = apply_transform(best.T_model_touch, np.vstack([t.points for t in touches]))
-    rows = patches_touched(model, points)
-    crossed = int(np.sum(rows[:, 1] >= defaults.EDGE_MIN_POINTS))
+    crossed = patches_crossed(model, points)
     if crossed > 1:
         warnings.warn(
             f"the touch crosses a sharp edge of {best.model!r} (its points lie on {crossed} "

@@ -20,7 +20,7 @@ from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.bestfirst import fit_best_first
 from meshrec.recognition.cascade import cascade_register
-from meshrec.recognition.edges import patches_touched, warn_sharp_edges
+from meshrec.recognition.edges import patches_crossed, warn_sharp_edges
 from meshrec.recognition.flatness import flat_prior
 from meshrec.recognition.freedom import (
     PoseFreedom,
@@ -1202,7 +1202,7 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
         # every turn a symmetry (a sphere): every basin is the same pose, none to miss
         free = freedom.unresolved or freedom.turns >= 3
         points = apply_transform(best.T_model_touch, rec.touch.points)
-        crossed = int(np.sum(patches_touched(model, points)[:, 1] >= defaults.EDGE_MIN_POINTS))
+        crossed = patches_crossed(model, points)
     if free or crossed > 1:
         return None, time.perf_counter() - t0
     # the first pass's window (not widened), more candidates in it
