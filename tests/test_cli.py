@@ -386,3 +386,34 @@ def test_models_help_names_every_bundled_set(command, capsys):
     assert "see 'meshrec models'" in text
     for name in bundled_model_sets():
         assert name in text.split("bundled set (")[1].split(";")[0]
+
+
+def test_index_checks_a_read_only_cache_instead_of_refusing_it(tmp_path, capsys, monkeypatch):
+    # a read-only cache that holds every model's index: exit 0 with the models listed as
+    # cached (it exited 2, "not writable", though it had nothing to build); one that lacks
+    # a model: exit 2 naming it; --force on it: exit 2 before any work
+    cache = tmp_path / "cache"
+    assert main(["index", "surfaces", "--cache-dir", str(cache)]) == 0
+    capsys.readouterr()
+    real_access = os.access
+
+    def read_only(path, mode, *a, **k):
+        if Path(path) == cache and mode & os.W_OK:
+            return False
+        return real_access(path, mode, *a, **k)
+
+    monkeypatch.setattr(os, "access", read_only)
+    assert main(["index", "surfaces", "--cache-dir", str(cache)]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.count("cached") == 4
+    assert "read-only, and every model's index is in it" in captured.err
+    assert main(["index", "surfaces", "--cache-dir", str(cache), "--force"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "not writable, and --force rebuilds every index" in captured.err
+    (tmp_path / "m").mkdir()
+    trimesh.creation.icosphere(subdivisions=2).export(tmp_path / "m" / "ball.stl")
+    assert main(["index", str(tmp_path / "m"), "--cache-dir", str(cache)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "not writable, and 1 of 1 models are not in it (ball)" in captured.err

@@ -40,17 +40,45 @@ def _resolve_model_file(text: str) -> Path:
 def run_index(args, out, err) -> int:
     """``meshrec index``: build or refresh the indexes, a progress line per stage on
     ``err``, a line per model on ``out``, a ResolutionWarning per model too coarse for
-    reliable answers (:mod:`meshrec.model.resolution`); 0."""
+    reliable answers (:mod:`meshrec.model.resolution`); 0. A read-only cache folder is
+    checked instead: 0 when it holds every model's index, else a ValueError."""
+    import warnings
+
     from meshrec.app import inputs
+    from meshrec.io.checks import one_line
+    from meshrec.model.cache import CacheWarning, default_cache_dir
 
     folder = inputs.model_folder(args.models)
-    _check_cache_folder(args.cache_dir)
+    writable = _check_cache_folder(args.cache_dir, force=getattr(args, "force", False))
     tty = err.isatty()
     try:
-        library = inputs.library(args, folder, progress=_progress_printer(err))
+        if writable:
+            library = inputs.library(args, folder, progress=_progress_printer(err))
+        else:
+            # A read-only cache: index may only check it. The models are loaded (nothing
+            # can be written, so the cache's own "continuing without caching" warnings
+            # are expected); any that had to be built means the cache is not complete.
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", CacheWarning)
+                library = inputs.library(args, folder, progress=_progress_printer(err))
     finally:
         if tty:
             err.write("\n")  # end the progress line, also when interrupted
+    if not writable:
+        missing = [m.name for m in library.models if not m.from_cache]
+        if missing:
+            where = args.cache_dir if args.cache_dir is not None else default_cache_dir()
+            raise ValueError(
+                f"{_cache_name(args.cache_dir)} {one_line(str(where))}: not writable, and "
+                f"{len(missing)} of {len(library.models)} models are not in it "
+                f"({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}); index "
+                "only fills the cache"
+            )
+        where = args.cache_dir if args.cache_dir is not None else default_cache_dir()
+        err.write(
+            f"{_cache_name(args.cache_dir)} {one_line(str(where))}: read-only, and every "
+            "model's index is in it: nothing to write\n"
+        )
     for m in library.models:
         how = "cached" if m.from_cache else f"built in {m.build_seconds:.2f} s"
         out.write(
@@ -61,17 +89,23 @@ def run_index(args, out, err) -> int:
     return 0
 
 
-def _check_cache_folder(cache_dir) -> None:
-    """``index`` is for the cache: refuse one that cannot be a writable folder at once
-    (a recognition goes on without caching, with a warning; an index that caches nothing
-    would exit 0 having done nothing lasting)."""
+def _cache_name(cache_dir) -> str:
+    return "--cache-dir" if cache_dir is not None else "the cache folder"
+
+
+def _check_cache_folder(cache_dir, force: bool = False) -> bool:
+    """``index`` is for the cache: refuse one that cannot be a folder at once (a
+    recognition goes on without caching, with a warning; an index that caches nothing
+    would exit 0 having done nothing lasting), and a read-only one when ``force`` would
+    rebuild every index. Returns whether the folder is writable: a read-only one may
+    still be complete (:func:`run_index` checks it)."""
     import os
 
     from meshrec.io.checks import one_line
     from meshrec.model.cache import default_cache_dir
 
     where = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    name = "--cache-dir" if cache_dir is not None else "the cache folder"
+    name = _cache_name(cache_dir)
     try:
         where.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -79,8 +113,13 @@ def _check_cache_folder(cache_dir) -> None:
             f"{name} {one_line(str(where))}: cannot be created ({exc.strerror or exc}); "
             "index only fills the cache"
         ) from exc
-    if not os.access(where, os.W_OK | os.X_OK):
-        raise ValueError(f"{name} {one_line(str(where))}: not writable; index only fills the cache")
+    writable = os.access(where, os.W_OK | os.X_OK)
+    if not writable and force:
+        raise ValueError(
+            f"{name} {one_line(str(where))}: not writable, and --force rebuilds every index; "
+            "index only fills the cache"
+        )
+    return writable
 
 
 def _warn_coarse(models) -> None:
