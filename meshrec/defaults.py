@@ -783,6 +783,11 @@ SERVICE_ERROR_CHARS = 1000
 #: Retry-After) rather than queueing for minutes: a client that wants the answer now
 #: should know the service is busy.
 SERVICE_MAX_WAITING = 8
+#: A request waiting for its turn checks this often (seconds) whether its client is still
+#: connected; one whose client has gone is dropped (and leaves the queue) instead of being
+#: answered to nobody: a client that times out and retries would otherwise fill the queue
+#: with work whose answers nobody reads (a black-box probe, stop 31).
+SERVICE_DISCONNECT_POLL = 0.25
 
 # --- joint pose seeds from pairs of touches (meshrec.recognition.pairs) --------------------
 #: Model points per touch and side: the (K, H) lookup's hits spread over the surface.

@@ -318,3 +318,39 @@ def test_a_port_in_use_or_out_of_range_is_one_line_and_status_2(served):
             assert proc.stderr.count("\n") == 1, proc.stderr
             assert proc.stderr.startswith("meshrec: error: ")
             assert pattern in proc.stderr
+
+
+def test_a_waiting_request_whose_client_left_is_dropped(served):
+    # A client that gives up (a timeout) leaves its request in the queue: it was run to
+    # the end and held its slot, the answer read by nobody. Now it is dropped when its
+    # turn comes or while it waits, with a line on the server's stderr; the request under
+    # way is answered as usual.
+    import socket
+
+    sims = [meshrec.simulate_touch(served.library["ellipsoid"], rng=s) for s in range(20, 24)]
+    slow = {"touches": [_body(sim.touch) for sim in sims]}
+    gone = json.dumps(_body(sims[0].touch)).encode()
+    host, port = served.url.removeprefix("http://").split(":")
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        running = pool.submit(_post, served.url, "/recognize", slow)
+        time.sleep(0.5)  # the slow request has its turn
+        with socket.create_connection((host, int(port)), timeout=10) as sock:
+            sock.sendall(
+                b"POST /recognize HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                + f"Content-Length: {len(gone)}\r\n\r\n".encode()
+                + gone
+            )
+        # closed before its answer: the client has gone
+        line = ""
+        deadline = time.monotonic() + REQUEST_TIMEOUT
+        with selectors.DefaultSelector() as sel:
+            sel.register(served.proc.stderr, selectors.EVENT_READ)
+            while "client left before its turn" not in line:
+                left = deadline - time.monotonic()
+                if left <= 0 or not sel.select(timeout=left):
+                    pytest.fail("the abandoned request was not dropped")
+                line = served.proc.stderr.readline()
+        answer = running.result()
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["best"] == "ellipsoid"
+    assert httpx.get(f"{served.url}/health", timeout=10).status_code == 200

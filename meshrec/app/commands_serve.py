@@ -23,6 +23,7 @@ library alone (see :mod:`meshrec.app.cli`).
 
 from __future__ import annotations
 
+import asyncio
 import json
 import sys
 import threading
@@ -276,7 +277,10 @@ def create_app(service: Service, max_body: int = defaults.SERVICE_MAX_BODY_BYTES
     mix them), and because the library's models are not promised safe for concurrent
     use. Each request gets its own recognition and document, so results cannot mix; a
     queued request waits for those before it (at most ``defaults.SERVICE_MAX_WAITING``
-    wait, later ones get 503 at once). For parallel throughput run one service per core.
+    wait, later ones get 503 at once). A queued request whose client disconnects is
+    dropped, not answered (checked every ``defaults.SERVICE_DISCONNECT_POLL`` seconds
+    while it waits, and when its turn comes): a recognition under way runs to its end. For
+    parallel throughput run one service per core.
     """
     from starlette.applications import Starlette
     from starlette.concurrency import run_in_threadpool
@@ -289,6 +293,31 @@ def create_app(service: Service, max_body: int = defaults.SERVICE_MAX_BODY_BYTES
     from meshrec.io.checks import one_line
 
     state = {"pending": 0}
+    turn = asyncio.Lock()  # the requests' turns, in order of arrival (service.lock inside)
+
+    async def turn_of(request) -> bool:
+        """Wait for this request's turn (``turn`` then held) while its client is still
+        connected, checked every ``defaults.SERVICE_DISCONNECT_POLL`` seconds and once
+        more when the turn comes; False (``turn`` not held) when the client has gone."""
+        # one acquire, waited on in steps (cancelling and acquiring again would lose the
+        # request's place in the queue)
+        acquiring = asyncio.ensure_future(turn.acquire())
+        while True:
+            done, _ = await asyncio.wait({acquiring}, timeout=defaults.SERVICE_DISCONNECT_POLL)
+            if done:
+                break
+            if await request.is_disconnected():
+                acquiring.cancel()
+                try:
+                    await acquiring
+                except asyncio.CancelledError:
+                    return False
+                turn.release()  # the turn came just as the wait was given up
+                return False
+        if await request.is_disconnected():
+            turn.release()
+            return False
+        return True
 
     def error(status: int, message: str, headers=None):
         return JSONResponse(
@@ -324,7 +353,17 @@ def create_app(service: Service, max_body: int = defaults.SERVICE_MAX_BODY_BYTES
                     )
                 state["pending"] += 1
                 try:
-                    doc = await run_in_threadpool(service.answer, job, advice)
+                    if not await turn_of(request):
+                        # the client has gone: nobody would read the answer
+                        sys.stderr.write(
+                            "meshrec: serve: a request's client left before its turn: "
+                            "not answered\n"
+                        )
+                        return Response(status_code=499)
+                    try:
+                        doc = await run_in_threadpool(service.answer, job, advice)
+                    finally:
+                        turn.release()
                 finally:
                     state["pending"] -= 1
             except BadRequest as exc:
