@@ -354,3 +354,41 @@ def test_a_waiting_request_whose_client_left_is_dropped(served):
     assert answer.status_code == 200, answer.text
     assert answer.json()["best"] == "ellipsoid"
     assert httpx.get(f"{served.url}/health", timeout=10).status_code == 200
+
+
+def _ignore_sigint() -> None:
+    """In the child: SIGINT ignored, as in the background of a non-interactive shell."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def test_a_signal_the_process_ignores_still_stops_it_with_its_status(served):
+    # Started with SIGINT ignored (the background of a non-interactive shell), `kill -INT`
+    # stopped the server (uvicorn catches the signal anyway) and it exited 0 with nothing
+    # said, as if it had stopped by itself; now one line and 130
+    args = ["serve", "--models", str(served.folder), "--host", "127.0.0.1", "--port", "0"]
+    proc = subprocess.Popen(
+        [*cli_command(), *args],
+        env=_env(served.cache),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_ignore_sigint,
+    )
+    try:
+        line = proc.stderr.readline()  # the start-up line: the server is about to listen
+        match = re.search(r"on (http://127\.0\.0\.1:\d+) ", line)
+        assert match, line
+        deadline = time.monotonic() + START_TIMEOUT
+        while True:  # answering: its signal handlers are installed
+            try:
+                if httpx.get(f"{match.group(1)}/health", timeout=5).status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            assert time.monotonic() < deadline, "meshrec serve did not answer /health"
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 130
+        assert proc.stderr.read() == "meshrec: interrupted\n"
+    finally:
+        _stop(proc)

@@ -450,7 +450,10 @@ def run_serve(args, err=None) -> int:
     int
         0 if the server stops by itself. Ctrl-C (SIGINT) ends it with KeyboardInterrupt
         once the requests under way are answered, which the command line turns into one
-        line and status 130; SIGTERM ends it likewise, with that signal's status.
+        line and status 130; SIGTERM ends it likewise, with that signal's status. Where
+        the process ignores the signal (SIGINT in the background of a non-interactive
+        shell), the server still stops on it: one line on ``err`` and 128 plus the
+        signal's number (130 for SIGINT, 143 for SIGTERM).
 
     Raises
     ------
@@ -489,7 +492,7 @@ def run_serve(args, err=None) -> int:
     shown = f"[{host}]" if ":" in host else host
     app = create_app(Service(library, units, probe_radius=probe_radius, workers=workers))
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
-    server = uvicorn.Server(config)
+    server = _server_class()(config)
     err.write(
         f"meshrec: serving {len(library)} models of {folder} on http://{shown}:{port} "
         "(Ctrl-C stops)\n"
@@ -500,4 +503,35 @@ def run_serve(args, err=None) -> int:
     finally:
         sock.close()
         workers.close()
+    if server.stopped_by is not None:
+        # A signal stopped the server and, raised again after its graceful shutdown, did
+        # not end the process: the process ignores it (a service started in the background
+        # of a non-interactive shell ignores SIGINT). Not a stop by itself: say so, and
+        # give the signal's status.
+        import signal
+
+        name = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}.get(
+            server.stopped_by, f"stopped by signal {int(server.stopped_by)}"
+        )
+        err.write(f"meshrec: {name}\n")
+        err.flush()
+        return 128 + int(server.stopped_by)
     return 0
+
+
+def _server_class():
+    """uvicorn.Server with the signal that stopped it (made here: uvicorn is the optional
+    ``service`` extra)."""
+    import uvicorn
+
+    class Server(uvicorn.Server):
+        """uvicorn's server, remembering the first signal that stopped it."""
+
+        stopped_by = None
+
+        def handle_exit(self, sig, frame) -> None:
+            if self.stopped_by is None:
+                self.stopped_by = sig
+            super().handle_exit(sig, frame)
+
+    return Server
