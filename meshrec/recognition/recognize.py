@@ -1053,8 +1053,10 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
     When even the best model fits far worse than the noise (or no model was registered),
     the (K, H) lookup may have kept the right contact out (curves straddling a seam
     between two patches of different curvature): the lookup is then widened by
-    ``defaults.LOOKUP_WIDEN_SCALE`` and every model registered again before concluding.
-    ``fits`` holds the joint fits of several touches by model (empty for one touch).
+    ``defaults.LOOKUP_WIDEN_SCALE`` and every model registered again before concluding;
+    the same passes run where one touch would name a model whose fit is only marginal
+    (chi-square tail below ``defaults.NAME_P_VALUE``). ``fits`` holds the joint fits of
+    several touches by model (empty for one touch).
     """
     by_name = {m.name: m for m in models}
     with timed("scoring"):
