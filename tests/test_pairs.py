@@ -35,8 +35,9 @@ def _touches(model, seed: int, count: int = 3):
     T_world_model[:3, :3] = Rotation.random(random_state=rng).as_matrix()
     T_world_model[:3, 3] = rng.uniform(-1, 1, 3)
     touches = [
-        meshrec.simulate_touch(model, length=0.2, noise=0.004, rng=rng, transform=False)
-        .touch.transformed(T_world_model)
+        meshrec.simulate_touch(
+            model, length=0.2, noise=0.004, rng=rng, transform=False
+        ).touch.transformed(T_world_model)
         for _ in range(count)
     ]
     return touches, np.linalg.inv(T_world_model)
@@ -127,7 +128,6 @@ def test_one_model_fitting_worse_than_the_noise_is_not_recognised():
     assert decide(["a"], [1.0], poor, n, noise).verdict == "recognised"
 
 
-
 def test_pair_screen_tree_gives_the_exact_nearest_sites(bumped, monkeypatch):
     # The screen's KD tree is built for speed (without compact nodes). Its capped
     # distances are the brute-force nearest sites' (points near the surface and far off),
@@ -155,3 +155,41 @@ def test_pair_screen_tree_gives_the_exact_nearest_sites(bumped, monkeypatch):
     assert len(fast) == len(default) >= 1
     for a, b in zip(fast, default, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_pair_seeds_are_rigid_where_a_model_pairs_frame_is_undefined(tmp_path):
+    # Two touches of a box (40 x 30 x 20) at a seeded pose (a black-box probe's case,
+    # stop 32): some model point pairs lie on two faces at right angles with the baseline
+    # along their bisector, where the pair's frame is undefined. Their "rotations" were
+    # singular, squashed the touches onto a line that fits any surface to 1e-15, and were
+    # all 32 seeds kept; the box was then left out of `plausible`. Every seed must be a
+    # rotation, and the recognition names the box at a pose that fits to the noise.
+    import trimesh
+
+    (tmp_path / "models").mkdir()
+    box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    box.export(tmp_path / "models" / "box.stl")
+    trimesh.creation.box(extents=(60.0, 45.0, 6.0)).export(tmp_path / "models" / "plate.stl")
+    library = meshrec.ModelLibrary.from_folder(tmp_path / "models", cache_dir=tmp_path / "cache")
+    rng = np.random.default_rng(4001)
+    q = rng.normal(size=4)
+    T_world_model = trimesh.transformations.quaternion_matrix(q / np.linalg.norm(q))
+    T_world_model[:3, 3] = rng.uniform(-200, 200, 3)
+    touches = [
+        meshrec.simulate_touch(
+            box, rng=200 + k, noise=0.02, n_points=61, transform=False
+        ).touch.transformed(T_world_model)
+        for k in range(2)
+    ]
+    geometries = [touch_geometry(t) for t in touches]
+    seeds = pair_seeds(touches, library["box"], geometries)
+    assert len(seeds) >= 1
+    for T in seeds:
+        np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9)
+        assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0)
+    rec = meshrec.recognize(touches, library)
+    assert rec.best.model == "box"
+    assert "box" in rec.plausible
+    R = rec.best.T_model_touch[:3, :3]
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-9)
+    assert rec.best.rms < 2.0 * 0.02 / np.sqrt(3)  # uniform noise's RMS, twice

@@ -244,6 +244,11 @@ def joint_poses(
     coarse = sorted(
         _coarse(model, sub, starts, tol, [start_res[k] for k in chosen]), key=lambda c: c.rms
     )
+    # A refinement that went astray (not a finite fit) is no pose: left out, and with
+    # none left there is no pose (an empty batch was refused with a ValueError).
+    coarse = [c for c in coarse if np.isfinite(c.rms)]
+    if not coarse:
+        return ()
     least = min(c.rms for c in coarse)
     kept = [c.T_model_touch for c in coarse if c.rms <= defaults.JOINT_KEEP_RATIO * least]
     kept = _merged(kept, sub, tol)

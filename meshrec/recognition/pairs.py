@@ -192,6 +192,18 @@ def _pair_poses(a: _Side, b: _Side) -> np.ndarray:
         >= _across(d_hat[None], (a.normal - b.normal)[None])[1][0]
     )
     sign = 1.0 if use_sum else -1.0
+    # A frame whose second axis is (nearly) along the baseline is undefined: the normals'
+    # sum or difference has no part across it (two faces of a box at right angles, the
+    # baseline along their bisector). Such pairs are dropped: normalising a vanishing
+    # part gave a singular "rotation" that squashed every touch onto a line, fitting any
+    # surface to 1e-15 (a black-box probe, stop 32: every kept seed of a box's two
+    # touches was such a pose, and the box was left out of `plausible`).
+    if _across(d_hat[None], (a.normal + sign * b.normal)[None])[1][0] < _FRAME_MIN:
+        return np.zeros((0, 4, 4))
+    ok = _across(e, ma + sign * mb)[1] >= _FRAME_MIN
+    i, j, e, ma, mb = i[ok], j[ok], e[ok], ma[ok], mb[ok]
+    if len(i) == 0:
+        return np.zeros((0, 4, 4))
     F_touch = _frame(d_hat[None], (a.normal + sign * b.normal)[None])[0]
     F_model = _frame(e, ma + sign * mb)
     R = F_model @ F_touch.T
@@ -208,10 +220,16 @@ def _across(e1: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return perp, np.linalg.norm(perp, axis=1)
 
 
+#: Least part of a frame's second vector across its baseline (unit vectors): below it
+#: the frame's rotation about the baseline is undefined.
+_FRAME_MIN = 1e-6
+
+
 def _frame(e1: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) right-handed frames, columns ``e1``, ``c`` across ``e1``, their cross."""
+    """(m, 3, 3) right-handed frames, columns ``e1``, ``c`` across ``e1``, their cross
+    (each ``c`` must have a part across ``e1`` of at least ``_FRAME_MIN``)."""
     perp, norm = _across(e1, c)
-    e2 = perp / np.maximum(norm, 1e-12)[:, None]
+    e2 = perp / norm[:, None]
     return np.stack([e1, e2, np.cross(e1, e2)], axis=2)
 
 
