@@ -80,18 +80,22 @@ def pair_seeds(
     if not isinstance(keep, (int, np.integer)) or isinstance(keep, bool) or keep < 1:
         raise ValueError(f"keep must be a positive integer, got {keep!r}")
     points = [g.point for g in geometries]
-    # The pairs with the longest baselines pin the rotation best.
-    pairs = sorted(
-        itertools.combinations(range(len(touches)), 2),
-        key=lambda ab: -float(np.linalg.norm(points[ab[1]] - points[ab[0]])),
-    )[: defaults.PAIR_MAX_PAIRS]
     spread = {
         k: [
             _spread(model, side, lookup_scale)
             for side in surface_sides(geometries[k], touches[k], model)
         ]
-        for k in sorted({k for ab in pairs for k in ab})
+        for k in range(len(touches))
     }
+    # The pairs with the longest baselines pin the rotation best; of the touches whose
+    # (K, H) matches some of the model's points (one across an edge may match none: with
+    # it in the longest pair, a box's pair search found nothing, a black-box probe at
+    # stop 32).
+    matched = [k for k in range(len(touches)) if any(len(side.x) for side in spread[k])]
+    pairs = sorted(
+        itertools.combinations(matched, 2),
+        key=lambda ab: -float(np.linalg.norm(points[ab[1]] - points[ab[0]])),
+    )[: defaults.PAIR_MAX_PAIRS]
     T = np.concatenate(
         [np.zeros((0, 4, 4))]
         + [
