@@ -409,3 +409,17 @@ def test_exploring_near_symmetries_never_worsens_the_fit(library):
     assert again.registration.rms <= fit.registration.rms
     with pytest.raises(ValueError, match="geometries"):
         joint.explore_weak_motions(touches, model, geometries[:1], fit)
+
+
+def test_touches_in_different_units_are_named_by_their_files(tmp_path):
+    # the message counted the touches from 0 (touches[2]) where the command line lists
+    # its files from 1: the file names say which is which
+    import trimesh
+
+    sim = meshrec.simulate_touch(trimesh.creation.icosphere(subdivisions=3), rng=1)
+    sim.touch.to_file(tmp_path / "a.csv")
+    meshrec.TouchData(curves=[c * 1e-3 for c in sim.touch.curves]).to_file(tmp_path / "b.csv")
+    touches = [meshrec.TouchData.from_file(tmp_path / n) for n in ("a.csv", "b.csv")]
+    pattern = r"touches\[0\] \(.*a\.csv\) is 1[.0-9]*e\+03 times the size of touches\[1\] \("
+    with pytest.raises(ValueError, match=pattern + r".*b\.csv\)"):
+        joint.check_touch_sizes(touches)

@@ -110,10 +110,17 @@ def check_touch_sizes(touches: Sequence[TouchData]) -> None:
     big, small = int(np.argmax(sizes)), int(np.argmin(sizes))
     if sizes[small] > 0 and sizes[big] / sizes[small] > defaults.JOINT_MAX_SIZE_RATIO:
         raise ValueError(
-            f"touches[{big}] is {sizes[big] / sizes[small]:.3g} times the size of "
-            f"touches[{small}] ({sizes[big]:.4g} against {sizes[small]:.4g}): touches of one "
-            "object in different units? Give every touch in the same unit"
+            f"{_named(touches, big)} is {sizes[big] / sizes[small]:.3g} times the size of "
+            f"{_named(touches, small)} ({sizes[big]:.4g} against {sizes[small]:.4g}): "
+            "touches of one object in different units? Give every touch in the same unit"
         )
+
+
+def _named(touches: Sequence[TouchData], k: int) -> str:
+    """``touches[k]``, with its file where it was read from one (the command line's
+    touches are counted from 1, the list from 0)."""
+    source = touches[k].source
+    return f"touches[{k}]" if source is None else f"touches[{k}] ({source})"
 
 
 def pooled_noise(noises: Sequence[float], n_points: Sequence[int]) -> float:
