@@ -785,11 +785,9 @@ def _search_adequately(
     (:func:`~meshrec.recognition.joint.search_pairs`), both with the (K, H) window widened
     by ``lookup_scale``. With ``below`` False only the models within the gap of the best
     that fit worse than the noise qualify (the widened pass: the leaders, where a missed
-    pose turns the answer to ``unknown``). ``fits`` is updated in place; returns the names
-    of the models searched from pairs.
+    pose turns the answer to ``unknown``). ``fits`` is updated in place.
     """
     searched = set()
-    paired = set()
     gap = defaults.PAIR_SEARCH_GAP
     while True:
         names = list(fits)
@@ -811,7 +809,7 @@ def _search_adequately(
             and log_likelihood_bound(fits[m.name], touches, noise, geometries) >= leader - gap
         ]
         if not todo:
-            return paired
+            return
         for model in todo:
             searched.add(model.name)
             fit = fits[model.name]
@@ -831,7 +829,6 @@ def _search_adequately(
                 fit = search_pairs(
                     touches, model, geometries, fit, lookup_scale=lookup_scale, hopeless_rms=far
                 )
-                paired.add(model.name)
             fits[model.name] = fit
 
 
@@ -1142,8 +1139,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
         search = False
     if search:
         with timed("adequacy"):
-            noise_j, n_j = _noise_and_points(rec)
-            _search_lone_leader(rec.touches, models, rec.geometries, fits, noise_j, n_j)
+            _search_lone_leader(rec.touches, models, rec.geometries, fits, noise, n)
             ranking = [fits[r.model].registration if r.model in fits else r for r in rec.ranking]
             rec = dataclasses.replace(rec, ranking=tuple(ranking))
             scores, noise = _score(rec, prior)
@@ -1154,7 +1150,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             # One touch about to name a model that fits only marginally (the right model
             # fits better than this on all but a few touches): the touched model's own
             # search may have ended short of its pose while another model fits about as
-            # well (a YCB touch of the gelatin box named the foam brick, p 0.034; the
+            # well (a YCB touch of the gelatin box named the foam brick, tail 0.016; the
             # gelatin box's pose, found by these passes, fits better). Look harder first.
             t1 = time.perf_counter()
             rec, noise, run, how = _looked_harder(
