@@ -67,7 +67,7 @@ def test_an_unknown_or_ambiguous_answer_pays_nothing(surfaces, monkeypatch):
 def test_a_scanned_box_is_not_named_as_another_on_a_short_search(tmp_path):
     # Measured before the change: the gelatin box (normal noise 0.1 mm, seed 3003) was
     # `recognised` as the foam brick at p 1.000 (RMS 6.92e-5 against the gelatin box's
-    # 8.03e-5, the gelatin box's search ending 50 mm from the contact); the foam brick's
+    # 8.03e-5, the gelatin box's search ending 56 mm from the contact); the foam brick's
     # fit has a chi-square tail of 0.016. The widened and denser passes find the gelatin
     # box's pose (6.06e-5).
     names = ("gelatin_box", "foam_brick")
