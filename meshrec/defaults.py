@@ -818,6 +818,10 @@ PAIR_REFINE_SEEDS = 32
 #: best, is searched again from pairs of touches before the scores are trusted. Its joint
 #: pose may have been missed (look-alike shapes, short noisy curves: reports/touches.md).
 PAIR_SEARCH_GAP = 3.0
+#: Several touches that no model fits, some of them rough (across an edge): this many of
+#: the best models by joint fit are searched from pairs of touches with the window
+#: widened, whatever their bound (recognize._search_rough_touches).
+ROUGH_PAIR_MODELS = 8
 
 # --- ball-tipped probes (meshrec.contact.probe, meshrec.recognition.probing) ---------------
 #: A touch recognised without a probe radius is tested for an undeclared ball tip: the

@@ -1076,8 +1076,38 @@ def _widened_joint(rec: Recognition, fits: dict, models: dict, method: str) -> R
         lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
         below=False,
     )
+    _search_rough_touches(rec, present, fits, noise, n)
     merged = [fits[reg.model].registration if reg.model in fits else reg for reg in merged]
     return dataclasses.replace(rec, ranking=tuple(merged))
+
+
+def _search_rough_touches(rec: Recognition, models: list, fits: dict, noise: float, n: int):
+    """Several touches that no model fits, some of them rough (curve fits far worse than
+    the noise: across an edge): the best ``defaults.ROUGH_PAIR_MODELS`` models by joint
+    fit are searched from pairs of touches with the (K, H) window widened, whatever their
+    bound.
+
+    A rough touch's curvature is not defined, so each touch registered alone can miss its
+    place, and the bound built on those registrations then rules the right model out of
+    the pair search (a black-box probe, stop 32: three touches across a coarse plate's
+    edges were `unknown` with the plate fourth at 45 times the noise, where its true pose
+    fits to it; the widened pair search finds that pose). ``fits`` is updated in place.
+    """
+    rough = any(g.fit_to_noise > defaults.ROUGH_FIT_RATIO for g in rec.geometries)
+    ranked = sorted(
+        (m for m in models if not fits[m.name].registration.rejected),
+        key=lambda m: (fits[m.name].registration.rms, m.name),
+    )
+    if not rough or not ranked or not _fits_worse(fits[ranked[0].name].registration.rms, n, noise):
+        return
+    for model in ranked[: defaults.ROUGH_PAIR_MODELS]:
+        fits[model.name] = search_pairs(
+            rec.touches,
+            model,
+            rec.geometries,
+            fits[model.name],
+            lookup_scale=defaults.LOOKUP_WIDEN_SCALE,
+        )
 
 
 def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=None) -> Recognition:
