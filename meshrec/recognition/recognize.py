@@ -1090,7 +1090,7 @@ def _search_rough_touches(rec: Recognition, models: list, fits: dict, noise: flo
     A rough touch's curvature is not defined, so each touch registered alone can miss its
     place, and the bound built on those registrations then rules the right model out of
     the pair search (a black-box probe, stop 32: three touches across a coarse plate's
-    edges were `unknown` with the plate fourth at 45 times the noise, where its true pose
+    edges were `unknown` with the plate fourth at 28 times the noise, where its true pose
     fits to it; the widened pair search finds that pose). ``fits`` is updated in place.
     """
     rough = any(g.fit_to_noise > defaults.ROUGH_FIT_RATIO for g in rec.geometries)
