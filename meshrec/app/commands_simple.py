@@ -66,15 +66,14 @@ def run_index(args, out, err) -> int:
             err.write("\n")  # end the progress line, also when interrupted
     if not writable:
         missing = [m.name for m in library.models if not m.from_cache]
+        where = args.cache_dir if args.cache_dir is not None else default_cache_dir()
         if missing:
-            where = args.cache_dir if args.cache_dir is not None else default_cache_dir()
             raise ValueError(
                 f"{_cache_name(args.cache_dir)} {one_line(str(where))}: not writable, and "
                 f"{len(missing)} of {len(library.models)} models are not in it "
                 f"({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}); index "
                 "only fills the cache"
             )
-        where = args.cache_dir if args.cache_dir is not None else default_cache_dir()
         err.write(
             f"{_cache_name(args.cache_dir)} {one_line(str(where))}: read-only, and every "
             "model's index is in it: nothing to write\n"

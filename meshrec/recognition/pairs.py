@@ -80,22 +80,32 @@ def pair_seeds(
     if not isinstance(keep, (int, np.integer)) or isinstance(keep, bool) or keep < 1:
         raise ValueError(f"keep must be a positive integer, got {keep!r}")
     points = [g.point for g in geometries]
-    spread = {
-        k: [
-            _spread(model, side, lookup_scale)
-            for side in surface_sides(geometries[k], touches[k], model)
-        ]
-        for k in range(len(touches))
-    }
+    spread: dict[int, list[_Side]] = {}
+
+    def matches(k: int) -> bool:
+        """Whether touch ``k``'s (K, H) matches some of the model's points (spread once,
+        when first needed)."""
+        if k not in spread:
+            spread[k] = [
+                _spread(model, side, lookup_scale)
+                for side in surface_sides(geometries[k], touches[k], model)
+            ]
+        return any(len(side.x) for side in spread[k])
+
     # The pairs with the longest baselines pin the rotation best; of the touches whose
     # (K, H) matches some of the model's points (one across an edge may match none: with
     # it in the longest pair, a box's pair search found nothing, a black-box probe at
     # stop 32).
-    matched = [k for k in range(len(touches)) if any(len(side.x) for side in spread[k])]
-    pairs = sorted(
-        itertools.combinations(matched, 2),
+    by_length = sorted(
+        itertools.combinations(range(len(touches)), 2),
         key=lambda ab: -float(np.linalg.norm(points[ab[1]] - points[ab[0]])),
-    )[: defaults.PAIR_MAX_PAIRS]
+    )
+    pairs = []
+    for a, b in by_length:
+        if len(pairs) == defaults.PAIR_MAX_PAIRS:
+            break
+        if matches(a) and matches(b):
+            pairs.append((a, b))
     T = np.concatenate(
         [np.zeros((0, 4, 4))]
         + [
