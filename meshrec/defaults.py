@@ -773,6 +773,10 @@ ADVICE_RIDGE = 1e-6
 #: (TOUCH_MAX_FILE_BYTES). A body over it is refused (HTTP 413) from its Content-Length
 #: or, without one, as soon as that many bytes have arrived, before it is parsed.
 SERVICE_MAX_BODY_BYTES = TOUCH_MAX_FILE_BYTES
+#: An oversized body up to this many bytes is read and dropped before the 413 is sent, so
+#: that clients which send the whole body before reading the answer (Python's urllib) see
+#: it; a larger one is refused at once and its connection closed.
+SERVICE_DRAIN_BYTES = 8 * SERVICE_MAX_BODY_BYTES
 #: Most touches in one request (`{"touches": [...]}`): each is registered on every model,
 #: so a request's time grows with them; a robot makes a handful before it decides.
 SERVICE_MAX_TOUCHES = 16

@@ -266,6 +266,24 @@ def test_a_body_without_content_length_is_cut_at_the_limit(served):
     assert httpx.get(f"{served.url}/health", timeout=10).status_code == 200
 
 
+def test_an_oversized_body_gets_its_413_with_urllib(served):
+    # urllib sends the whole body before it reads the answer: a server that answers and
+    # closes without reading it resets the connection under the client (a black-box
+    # probe, stop 32), which then never sees the 413.
+    import urllib.error
+    import urllib.request
+
+    body = b" " * (defaults.SERVICE_MAX_BODY_BYTES + 1_000_000)
+    request = urllib.request.Request(
+        f"{served.url}/recognize", data=body, headers={"Content-Type": "application/json"}
+    )
+    with pytest.raises(urllib.error.HTTPError) as info:
+        urllib.request.urlopen(request, timeout=REQUEST_TIMEOUT)
+    assert info.value.code == 413
+    assert "SERVICE_MAX_BODY_BYTES" in json.loads(info.value.read())["error"]
+    assert httpx.get(f"{served.url}/health", timeout=10).status_code == 200
+
+
 def test_concurrent_requests_each_get_their_own_answer(served):
     names = ["ellipsoid", "capsule", "ellipsoid", "capsule"]
     sims = [
