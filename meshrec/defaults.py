@@ -442,6 +442,12 @@ ROUGH_HOLD_RATIO = 10.0
 #: second touch of the same place carries the probe's own noise, which no probe has below
 #: 1e-7 of the touch's size (10 nm on a 0.1 m touch).
 TOUCH_COPY_FRACTION = 1e-7
+#: ... or within this fraction of the samples' scatter about their curves (the noise per
+#: coordinate, estimated from second differences: ``recognize._sample_scatter``): a copy
+#: rounded or jittered far below the probe's noise is not a new measurement (a touch in mm
+#: rounded to 1 um against 20 um of noise is 0.1 of it at most); a second touch of the same
+#: place differs by its own noise, several times the scatter at some point.
+TOUCH_COPY_NOISE_FRACTION = 0.25
 
 # --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
 #: Degrees of freedom of the pose search (a rigid motion), taken off in the fit test.

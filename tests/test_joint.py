@@ -193,21 +193,44 @@ def test_the_same_touch_twice_is_refused(library, three_on_ellipsoid, tmp_path, 
     )
     assert status == 2
     assert "holds the same data as touch[0]" in capsys.readouterr().err
-    # a jitter far below any probe's noise (1e-9 of the touch's size, as re-saving with
-    # rounding leaves) is the same data too; a difference at a probe's noise is not
+    # a jitter far below the probe's noise (+-0.002 here: 1e-9 of the touch's size, or
+    # rounding to 1e-4, 0.05 of the noise, as re-saving leaves) is the same data too; the
+    # same touch with noise of the probe's own size added is another touch
+    from meshrec.recognition.recognize import _touches
+
     rng = np.random.default_rng(0)
     size = float(np.linalg.norm(np.ptp(touches[0].points, axis=0)))
-    for scale, refused in ((1e-9, True), (1e-5, False)):
-        jittered = meshrec.TouchData(
-            curves=[c + rng.uniform(-scale, scale, c.shape) * size for c in touches[0].curves]
-        )
+    copies = [
+        ([c + rng.uniform(-1e-9, 1e-9, c.shape) * size for c in touches[0].curves], True),
+        ([np.round(c, 4) for c in touches[0].curves], True),
+        ([c + rng.uniform(-0.0002, 0.0002, c.shape) for c in touches[0].curves], True),
+        ([c + rng.uniform(-0.002, 0.002, c.shape) for c in touches[0].curves], False),
+    ]
+    for curves, refused in copies:
+        copy = meshrec.TouchData(curves=curves)
         if refused:
             with pytest.raises(ValueError, match=r"touch\[1\] holds nearly the same data"):
-                meshrec.recognize([touches[0], jittered], library)
+                meshrec.recognize([touches[0], copy], library)
         else:
-            from meshrec.recognition.recognize import _touches
+            assert len(_touches([touches[0], copy])) == 2
 
-            assert len(_touches([touches[0], jittered])) == 2
+
+@pytest.mark.parametrize("noise", [0.0005, 0.002, 0.01])
+def test_sample_scatter_reads_the_noise(noise):
+    # isotropic uniform noise +-w has a deviation of w / sqrt(3) per coordinate; on a
+    # gently curved circle of radius 1 sampled every 0.015 the bend adds about 1e-4
+    from meshrec.recognition.recognize import _sample_scatter
+
+    rng = np.random.default_rng(5)
+    s = np.linspace(-0.15, 0.15, 21)
+    curves = []
+    for k in range(3):
+        turn = k * np.pi / 3
+        u = np.array([np.cos(turn), np.sin(turn), 0.0])
+        arc = np.sin(s)[:, None] * u + (1.0 - np.cos(s))[:, None] * np.array([0, 0, 1.0])
+        curves.append(arc + rng.uniform(-noise, noise, arc.shape))
+    scatter = _sample_scatter(meshrec.TouchData(curves=curves))
+    assert scatter == pytest.approx(noise / np.sqrt(3.0), rel=0.25)
 
 
 def test_recognize_names_a_bad_entry_and_geometry(library, three_on_ellipsoid):

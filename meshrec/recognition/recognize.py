@@ -588,8 +588,12 @@ def _touches(touch) -> tuple[TouchData, ...]:
     # The same data twice (a file given twice) would count its evidence twice: its
     # likelihood ratios squared, an ambiguous answer made "recognised" by repetition.
     # (Two touches of the same place carry independent noise and are welcome.)
-    # Copies that differ only far below any probe's noise (re-saved with rounding, a
-    # jitter added) are the same data: within defaults.TOUCH_COPY_FRACTION of their extent.
+    # Copies that differ only far below the probe's noise (re-saved with rounding, a
+    # jitter added) are the same data: every point within defaults.TOUCH_COPY_FRACTION of
+    # their extent, or within defaults.TOUCH_COPY_NOISE_FRACTION of the samples' scatter
+    # about their curves (a touch in mm and its copy rounded to 1 um, against 20 um of
+    # noise, counted as two touches and moved every probability: a black-box probe, stop
+    # 33). A second touch of the same place scatters by its own noise.
     for j, b in enumerate(touch):
         for i in range(j):
             a = touch[i]
@@ -601,7 +605,16 @@ def _touches(touch) -> tuple[TouchData, ...]:
             apart = max(
                 float(np.max(np.abs(x - y))) for x, y in zip(a.curves, b.curves, strict=True)
             )
-            if apart <= defaults.TOUCH_COPY_FRACTION * extent:
+            if apart > defaults.TOUCH_COPY_FRACTION * extent:
+                scatter = min(_sample_scatter(a), _sample_scatter(b))
+                if not apart <= defaults.TOUCH_COPY_NOISE_FRACTION * scatter:
+                    continue
+                same = (
+                    f"nearly the same data (every point within {apart:.3g}, "
+                    f"{apart / scatter:.2g} times the scatter of its samples about their "
+                    "curves)"
+                )
+            else:
                 same = (
                     "the same data"
                     if apart == 0.0
@@ -610,11 +623,36 @@ def _touches(touch) -> tuple[TouchData, ...]:
                         f"{apart / extent:.2g} of its extent)"
                     )
                 )
-                raise ValueError(
-                    f"touch[{j}] holds {same} as touch[{i}]: give each touch once "
-                    "(a repeated touch would count its evidence again)"
-                )
+            raise ValueError(
+                f"touch[{j}] holds {same} as touch[{i}]: give each touch once "
+                "(a repeated touch would count its evidence again)"
+            )
     return tuple(touch)
+
+
+def _sample_scatter(touch: TouchData) -> float:
+    """The samples' scatter about their curves: the RMS, over every curve's inner samples,
+    of the second difference across the chord (``p[i-1] - 2 p[i] + p[i+1]`` less its
+    part along ``p[i+1] - p[i-1]``, which uneven spacing makes), over sqrt(12): the noise
+    per coordinate for isotropic noise (the part across a chord has two of the three
+    coordinates, each of variance 6 sigma^2); the curves' own bend adds to it. 0 without
+    inner samples.
+
+    Hand-written: a noise measure needing no fit (this runs before the touches' curve fits,
+    :func:`~meshrec.contact.geometry.estimate_local_geometry`)."""
+    parts = []
+    for c in touch.curves:
+        if len(c) < 3:
+            continue
+        d2 = c[:-2] - 2.0 * c[1:-1] + c[2:]
+        chord = c[2:] - c[:-2]
+        norm = np.linalg.norm(chord, axis=1)
+        unit = chord / np.maximum(norm, 1e-300)[:, None]
+        parts.append(d2 - np.einsum("ij,ij->i", d2, unit)[:, None] * unit)
+    if not parts:
+        return 0.0
+    across = np.vstack(parts)
+    return float(np.sqrt((across**2).sum(axis=1).mean() / 12.0))
 
 
 def _without_repeats(touches: tuple) -> tuple[tuple, list[str], tuple[bool, ...]]:
