@@ -446,3 +446,28 @@ def test_touches_in_different_units_are_named_by_their_files(tmp_path):
     pattern = r"touches\[0\] \(.*a\.csv\) is 1[.0-9]*e\+03 times the size of touches\[1\] \("
     with pytest.raises(ValueError, match=pattern + r".*b\.csv\)"):
         joint.check_touch_sizes(touches)
+
+
+def test_a_last_touch_that_fits_no_model_alone_is_named(library):
+    # two touches of the ellipsoid, then one across the edge of a box that is not in the
+    # library (the object moved, or another was touched): the reason names the touches
+    # that fit alone and the one that fits nothing, not the library alone (a black-box
+    # probe, stop 33, got "not in the library, or ... crosses an edge"); the edge's misfit
+    # is 8 to 9 times this touch's noise: rough
+    import trimesh
+
+    rng = np.random.default_rng(13)
+    T_world_model = world_pose(rng)
+    touches, _ = touches_at(library["ellipsoid"], T_world_model, rng, n=2)
+    box = trimesh.creation.box(extents=[0.6, 0.6, 0.6])
+    edge = meshrec.simulate_touch(
+        box, contact=[0.3, 0.3, 0.05], length=0.3, noise=0.0005, rng=rng, transform=False
+    ).touch.transformed(T_world_model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize([*touches, edge], library)
+    assert rec.verdict == "unknown"
+    assert "touches 1 and 2 each fit ellipsoid" in rec.reason
+    assert "touch 3 fits no model alone" in rec.reason
+    assert "moved between the touches" in rec.reason
+    assert "cross an edge" in rec.reason

@@ -1597,14 +1597,51 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
             and fit.registered > k
             and _fits_alone(fit.single[k], touch, geometry)
         ]
-        if not names:
-            return ""
         fitting.append(names)
-    which = "; ".join(f"touch {k + 1}: {', '.join(names[:3])}" for k, names in enumerate(fitting))
+    if all(fitting):
+        which = "; ".join(
+            f"touch {k + 1}: {', '.join(names[:3])}" for k, names in enumerate(fitting)
+        )
+        return (
+            f"each touch alone fits a model of the library ({which}), but no model fits "
+            "them all at one pose: the touches may be of different objects, or the object "
+            "moved between them"
+        )
+    if not any(fitting):
+        return ""
+    # Some touches alone fit a model, the others none (a black-box probe, stop 33: an
+    # object turned before its third touch, which crossed a rim, was blamed on the rim
+    # and the library alone).
+    groups: dict[tuple, list[int]] = {}
+    for k, names in enumerate(fitting):
+        if names:
+            groups.setdefault(tuple(names[:3]), []).append(k + 1)
+    fit_part = "; ".join(
+        f"touch {ks[0]} fits {', '.join(names)}"
+        if len(ks) == 1
+        else f"touches {', '.join(map(str, ks[:-1]))} and {ks[-1]} each fit {', '.join(names)}"
+        for names, ks in groups.items()
+    )
+    misfits = [k for k, names in enumerate(fitting) if not names]
+    listed = " and ".join(str(k + 1) for k in misfits)
+    which = f"touch {listed} fits" if len(misfits) == 1 else f"touches {listed} fit"
+    rough = [k for k in misfits if rec.geometries[k].fit_to_noise > defaults.ROUGH_FIT_RATIO]
+    edge = (
+        ", or cross an edge or a rim (its curves fit no smooth surface patch), where the "
+        "search is less reliable"
+        if rough
+        else ""
+    )
+    best = rec.best
+    lead = (
+        f"the best joint fit, {best.model}'s, leaves {best.rms / noise:.3g} times the noise; "
+        if best is not None and best.rms is not None
+        else ""
+    )
     return (
-        f"each touch alone fits a model of the library ({which}), but no model fits them "
-        "all at one pose: the touches may be of different objects, or the object moved "
-        "between them"
+        f"{lead}alone, {fit_part} to the noise, but {which} no model alone: the object may "
+        f"have moved between the touches, or {'that touch' if len(misfits) == 1 else 'those'} "
+        f"may be of another object{edge}; or the object is not in the library"
     )
 
 
