@@ -33,6 +33,7 @@ from meshrec.recognition.joint import (
     check_touch_sizes,
     explore_weak_motions,
     first_touch_fit,
+    joint_poses,
     log_likelihood_bound,
     pooled_noise,
     register_touches,
@@ -58,8 +59,10 @@ from meshrec.recognition.scoring import (
     posterior,
 )
 from meshrec.recognition.units import check_units
+from meshrec.recognition.weak import weak_motion_starts
 from meshrec.recognition.workers import ModelWorkers
 from meshrec.registration.objective import residuals
+from meshrec.registration.poses import distinct_poses
 from meshrec.registration.register import Registration, touch_geometry
 from meshrec.registration.search import SEARCH_METHODS
 from meshrec.registration.transform import apply_transform
@@ -1260,6 +1263,14 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             rec, noise, caution = confirmed
             if caution:
                 cautions.append(caution)
+        if _would_be_named(rec, prior, n, noise):
+            t1 = time.perf_counter()
+            with timed("symmetries"):
+                explored = _explore_weak_motions_one(rec, by_name[rec.ranking[0].model])
+            if explored is not rec:
+                scores, noise = _score(explored, prior)
+                rec = _ordered(explored, scores)
+            t_wide += time.perf_counter() - t1
     with timed("scoring"):
         t1 = time.perf_counter()
         v = _decided(rec, prior, n, noise)
@@ -1383,6 +1394,53 @@ def _confirmed(rec: Recognition, prior, method: str, run, models: list):
             f"(RMS {after.rms:.3g} against {best.rms:.3g}; the data moved up to {moved:.3g})"
         )
     return (rec, noise, caution), time.perf_counter() - t0
+
+
+def _explore_weak_motions_one(rec: Recognition, model) -> Recognition:
+    """One touch about to name ``model``: its poses a long way along the best pose's
+    weakest motions refined too, and kept among its poses.
+
+    As for several touches (:func:`_explore_near_symmetries`): on a nearly symmetric
+    stretch of the surface (the rounded edge of a boxy superquadric, nearly a cylinder
+    there) a slide or turn of the touch fits almost as well, and the search, started
+    from the candidates, can end in one such basin while the true pose lies in another.
+    The local test then saw a fixed pose (a black-box probe, stop 33: `recognised`, the
+    pose `fixed` and 0.355 off, 7 times its sigma, on an exact mesh; the true pose fits
+    within 1% of its RMS). The poses found
+    (:func:`~meshrec.recognition.weak.weak_motion_starts`, refined on all the points)
+    join the model's; their weights then say whether the pose is one of several. Skipped
+    where the data leave the pose free or every turn is a symmetry of the model (a
+    sphere), as the confirmation is. Returns ``rec`` itself when nothing was explored.
+    """
+    best = rec.ranking[0]
+    if best.rejected or best.T_model_touch is None:
+        return rec
+    freedom = _free_motions(rec, model)[0]
+    if freedom.unresolved or freedom.turns >= 3:
+        return rec
+    starts = weak_motion_starts(model, rec.touch.points, best.T_model_touch)
+    if not starts:
+        return rec
+    # refined coarse to fine, as for several touches (every start: the one nearest the
+    # better basin is often the worst at its start)
+    found = joint_poses(
+        model, [rec.touch], starts, rec.geometry, best=len(starts), start_ratio=float("inf")
+    )
+    poses = distinct_poses(
+        sorted((*best.poses, *found), key=lambda p: p.rms), float(rec.geometry.half_length)
+    )
+    top = poses[0]
+    reg = dataclasses.replace(
+        best,
+        poses=poses,
+        T_model_touch=top.T_model_touch,
+        error=top.error,
+        rms=top.rms,
+        contact=top.contact,
+        normal=top.normal,
+        phi=top.phi,
+    )
+    return dataclasses.replace(rec, ranking=(reg, *rec.ranking[1:]))
 
 
 def _inward_hint(rec: Recognition, reason: str) -> str:
