@@ -450,6 +450,13 @@ TOUCH_COPY_FRACTION = 1e-7
 TOUCH_COPY_NOISE_FRACTION = 0.25
 
 # --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
+#: The model meshes' own error joins the noise the scores take (recognize._model_error):
+#: that of every model whose best fit comes within this factor of the best RMS (a rough
+#: mesh's right model fits worse than the touch's noise alone explains).
+MODEL_ERROR_REACH = 2.0
+#: ... and the answer says so (a caution) where that error is more than this fraction of
+#: the touch's own noise.
+MODEL_ERROR_NOTE = 0.3
 #: Degrees of freedom of the pose search (a rigid motion), taken off in the fit test.
 POSE_DOF = 6
 #: Effective number of independent residuals per data point (the temperature of the

@@ -941,10 +941,16 @@ def _noise_and_points(rec: Recognition) -> tuple[float, int]:
     return noise, int(sum(counts))
 
 
-def _score(rec: Recognition, prior: dict | None = None) -> tuple[tuple[ModelScore, ...], float]:
-    """Per-model calibrated scores (ranking order) and the noise estimate; ``prior``: the
-    models' prior weights by name (None: uniform)."""
+def _score(
+    rec: Recognition, prior: dict | None, models: list
+) -> tuple[tuple[ModelScore, ...], float]:
+    """Per-model calibrated scores (ranking order) and the noise they take; ``prior``: the
+    models' prior weights by name (None: uniform).
+
+    The noise is the touches' own (:func:`_noise_and_points`) and the model meshes' own
+    error (:func:`_model_error`) added in quadrature: a residual holds both."""
     noise, n = _noise_and_points(rec)
+    noise = float(np.hypot(noise, _model_error(rec, models)))
     rms, poses = [], []
     for reg in rec.ranking:
         if reg.rejected:
@@ -967,6 +973,28 @@ def _score(rec: Recognition, prior: dict | None = None) -> tuple[tuple[ModelScor
         for reg, p, r, li, ps in zip(rec.ranking, prob, rms, ll, poses, strict=True)
     )
     return scores, noise
+
+
+def _model_error(rec: Recognition, models: list) -> float:
+    """The largest error of the meshes of the models that compete: the RMS distance of
+    the true surface from the mesh of a model whose vertices scatter by ``s`` about it
+    (:attr:`~meshrec.model.index.ModelIndex.vertex_scatter`), ``s / sqrt(2)`` (a point of
+    a face sees its corners' offsets blended by its barycentric weights, whose squares
+    average 1/2). Every model whose best fit comes within
+    ``defaults.MODEL_ERROR_REACH`` times the best RMS competes; 0 when none is registered.
+
+    A raw scan's mesh scatters by the scanner's noise: where that is comparable to the
+    probe's, the right model's residuals exceed the touch's noise and a look-alike's mesh
+    can fit as well by chance (:mod:`meshrec.model.roughness`); an exact mesh adds
+    nothing."""
+    fitted = [r for r in rec.ranking if not r.rejected and r.rms is not None]
+    if not fitted:
+        return 0.0
+    best = min(r.rms for r in fitted)
+    by_name = {m.name: m for m in models}
+    reach = [r.model for r in fitted if r.rms <= defaults.MODEL_ERROR_REACH * best]
+    scatter = max(float(getattr(by_name[name], "vertex_scatter", 0.0)) for name in reach)
+    return scatter / np.sqrt(2.0)
 
 
 def _ordered(rec: Recognition, scores: tuple[ModelScore, ...]) -> Recognition:
@@ -1032,7 +1060,7 @@ def _looked_again(rec: Recognition, prior, models: list, method: str, run, phase
         run = ModelWorkers(models, workers=1)
     with timed(phase):
         rec, _ = _widened(rec, {m.name: m for m in models}, method, run, **kw)
-        scores, noise = _score(rec, prior)
+        scores, noise = _score(rec, prior, models)
         rec = _ordered(rec, scores)
     return rec, noise, run
 
@@ -1057,7 +1085,7 @@ def _looked_harder(
             rec, capped = _widened(rec, by_name, method, run)
         else:
             rec = _widened_joint(rec, fits, by_name, method)
-        scores, noise = _score(rec, prior)
+        scores, noise = _score(rec, prior, models)
         rec = _ordered(rec, scores)
     how = "every model registered again"
     if len(rec.touches) == 1 and _fits_below(rec, n, noise, p_value):
@@ -1177,7 +1205,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
                 floor = float(weights.max()) / defaults.FLAT_PRIOR_MAX_RATIO
                 prior = {m.name: floor for m in models}
                 prior.update({m.name: float(w) for m, w in zip(fitted, weights, strict=True)})
-        scores, noise = _score(rec, prior)
+        scores, noise = _score(rec, prior, models)
         rec = _ordered(rec, scores)
         t_score = time.perf_counter() - t0
     t_wide = 0.0
@@ -1213,7 +1241,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             _search_lone_leader(rec.touches, models, rec.geometries, fits, noise, n)
             ranking = [fits[r.model].registration if r.model in fits else r for r in rec.ranking]
             rec = dataclasses.replace(rec, ranking=tuple(ranking))
-            scores, noise = _score(rec, prior)
+            scores, noise = _score(rec, prior, models)
             rec = _ordered(rec, scores)
     if len(rec.touches) == 1 and not looked and _would_be_named(rec, prior, n, noise):
         p_best = fit_p_value(rec.scores[0].rms, n, noise)
@@ -1268,11 +1296,21 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             with timed("symmetries"):
                 explored = _explore_weak_motions_one(rec, by_name[rec.ranking[0].model])
             if explored is not rec:
-                scores, noise = _score(explored, prior)
+                scores, noise = _score(explored, prior, models)
                 rec = _ordered(explored, scores)
             t_wide += time.perf_counter() - t1
     with timed("scoring"):
         t1 = time.perf_counter()
+        own, _ = _noise_and_points(rec)
+        mesh_error = _model_error(rec, models)
+        if mesh_error > defaults.MODEL_ERROR_NOTE * own:
+            cautions.append(
+                f"the meshes of the models that fit best scatter about their surfaces by up "
+                f"to {mesh_error * np.sqrt(2.0):.3g} (vertex roughness, as a raw scan's): "
+                f"their error, {mesh_error:.3g} on the surface, is added to the touch's noise "
+                f"{own:.3g} (the scores take {noise:.3g}), and the answer can tell models "
+                "apart only above it"
+            )
         v = _decided(rec, prior, n, noise)
         if prior is not None:
             cautions.append(_flat_caution(rec.scores, prior))
