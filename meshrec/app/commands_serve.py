@@ -325,34 +325,30 @@ def create_app(service: Service, max_body: int = defaults.SERVICE_MAX_BODY_BYTES
         )
 
     async def body_of(request) -> bytes:
+        """The request's body, or BadRequest 413 when it is over ``max_body``: the rest
+        of an oversized body (up to ``defaults.SERVICE_DRAIN_BYTES``) is read and dropped
+        first: a client that sends its whole body before reading the answer (Python's
+        urllib) otherwise has the connection reset under it and never sees the 413 (a
+        black-box probe, stop 32)."""
         length = request.headers.get("content-length")
+        declared = None
         if length is not None:
             if not length.isdigit():
                 raise BadRequest(f"bad Content-Length {one_line(length, 40)!r}")
-            if int(length) > max_body:
-                await drained(request, int(length))
-                raise BadRequest(_too_large(int(length), max_body), 413)
+            declared = int(length)
+            if declared > max_body and declared > defaults.SERVICE_DRAIN_BYTES:
+                # too much to read for nothing: refused at once, the connection closed
+                raise BadRequest(_too_large(declared, max_body), 413)
         chunks, total = [], 0
         async for chunk in request.stream():
             total += len(chunk)
-            if total > max_body:
-                await drained(request, None)
-                raise BadRequest(_too_large(None, max_body), 413)
-            chunks.append(chunk)
-        return b"".join(chunks)
-
-    async def drained(request, length: int | None) -> None:
-        """Read and drop the rest of an oversized body (up to
-        ``defaults.SERVICE_DRAIN_BYTES``) before it is refused: a client that sends its
-        whole body before reading the answer (Python's urllib) otherwise has the
-        connection reset under it and never sees the 413 (a black-box probe, stop 32)."""
-        if length is not None and length > defaults.SERVICE_DRAIN_BYTES:
-            return  # too much to read for nothing: the connection is closed on it
-        total = 0
-        async for chunk in request.stream():
-            total += len(chunk)
             if total > defaults.SERVICE_DRAIN_BYTES:
-                return
+                break
+            if total <= max_body:
+                chunks.append(chunk)
+        if total > max_body:
+            raise BadRequest(_too_large(declared, max_body), 413)
+        return b"".join(chunks)
 
     def endpoint(advice: bool):
         async def handle(request):

@@ -90,7 +90,8 @@ class PhaseTimes:
     scoring : float
         The scores, the flat prior, the verdict and its cautions.
     freedom : float
-        The pose freedom at the best model's pose.
+        The pose freedom at the best model's pose; for one touch about to be named, also
+        its poses along the best pose's weak motions (``recognize``).
     cautions : float
         The coarse-resolution and sharp-edge warnings.
     probe_offset : float

@@ -1293,7 +1293,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
                 cautions.append(caution)
         if _would_be_named(rec, prior, n, noise):
             t1 = time.perf_counter()
-            with timed("symmetries"):
+            with timed("freedom"):
                 explored = _explore_weak_motions_one(rec, by_name[rec.ranking[0].model])
             if explored is not rec:
                 scores, noise = _score(explored, prior, models)
