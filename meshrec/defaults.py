@@ -449,6 +449,15 @@ TOUCH_COPY_FRACTION = 1e-7
 #: place differs by its own noise, several times the scatter at some point.
 TOUCH_COPY_NOISE_FRACTION = 0.25
 
+# --- before a model is named: its poses tried on the others (recognize._transferred) -------
+#: The named model's best poses (least RMS first) refined on every other model ...
+TRANSFER_POSES = 4
+#: ... where one starts within this factor of the named model's RMS (or of the noise, if
+#: larger): variants of one part in one frame fit there (a pose at 3 times the noise is
+#: within a few refinement steps); a model in another frame starts far off and costs one
+#: query.
+TRANSFER_REACH = 3.0
+
 # --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
 #: The model meshes' own error joins the noise the scores take (recognize._model_error):
 #: that of every model whose best fit comes within this factor of the best RMS (a rough
