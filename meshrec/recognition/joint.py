@@ -213,6 +213,11 @@ def joint_poses(
         Seeds whose starting RMS is more than this factor above the least are not refined
         (``inf``: every one of the ``best``; for seeds that all start a little off the
         pose, such as :func:`~meshrec.recognition.pairs.pair_seeds`).
+    hopeless_rms : float
+        A joint RMS above which the model cannot compete (``inf``: none): when every
+        coarse result kept, scored on all the points, is more than
+        ``defaults.JOINT_FINE_GAIN`` times above it, they are returned as they are (no
+        fine refinement).
 
     Returns
     -------

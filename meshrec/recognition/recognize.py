@@ -1482,7 +1482,12 @@ def _explore_weak_motions_one(rec: Recognition, model) -> Recognition:
     # refined coarse to fine, as for several touches (every start: the one nearest the
     # better basin is often the worst at its start)
     found = joint_poses(
-        model, [rec.touch], starts, rec.geometry, best=len(starts), start_ratio=float("inf")
+        model,
+        [rec.touch],
+        starts,
+        rec.geometry,
+        best=len(starts),
+        start_ratio=float("inf"),
     )
     reg = _with_more_poses(best, found, rec.touch, rec.geometry)
     return dataclasses.replace(rec, ranking=(reg, *rec.ranking[1:]))
