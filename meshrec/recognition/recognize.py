@@ -98,7 +98,9 @@ class Recognition(ValueEquality):
         (``defaults.SCORE_MAX_NOISE_FRACTION``) or across a sharp edge of that model,
         names none: see ``reason``), none when unknown.
     noise : float
-        The noise level estimated from the touch (standard deviation, data units).
+        The noise the scores take (standard deviation, data units): the level estimated
+        from the touches, with the error of the competing models' meshes added in
+        quadrature where they scatter (:mod:`meshrec.model.roughness`).
     reason : str
         One sentence explaining the verdict.
     warnings : tuple of str
