@@ -643,17 +643,10 @@ def transfer_poses(
 
     Parameters
     ----------
-    touches : sequence of TouchData
-        One or more, in one frame.
-    model : ModelIndex
-    geometries : sequence of LocalGeometry
-        One per touch.
+    touches, model, geometries, seeds, reach
+        As for :func:`transferred_poses`.
     previous : JointFit
         The model's fit so far.
-    seeds : sequence of (4, 4) float
-        Poses ``T_model_touch`` of another model.
-    reach : float
-        Largest starting RMS refined, model units (> 0).
 
     Returns
     -------
