@@ -61,6 +61,7 @@ _PHASES = [
     ("near-symmetries", lambda p: p.symmetries),
     ("widened pass", lambda p: p.widened),
     ("dense pass", lambda p: p.dense),
+    ("poses tried on other models", lambda p: p.transfer),
     ("scoring", lambda p: p.scoring),
     ("pose freedom", lambda p: p.freedom),
     ("warnings", lambda p: p.cautions),

@@ -29,6 +29,7 @@ PHASES = (
     "symmetries",
     "widened",
     "dense",
+    "transfer",
     "scoring",
     "freedom",
     "cautions",
@@ -87,6 +88,9 @@ class PhaseTimes:
         One touch: the dense passes and their scores: after a widened pass that still fit
         nothing, and the confirmation of the named model's search before a ``recognised``
         answer (0 when neither ran).
+    transfer : float
+        Before a model is named (one touch or several): its best poses refined on the
+        other models, and the scores again (``recognize._transferred``).
     scoring : float
         The scores, the flat prior, the verdict and its cautions.
     freedom : float
@@ -115,6 +119,7 @@ class PhaseTimes:
     symmetries: float = 0.0
     widened: float = 0.0
     dense: float = 0.0
+    transfer: float = 0.0
     scoring: float = 0.0
     freedom: float = 0.0
     cautions: float = 0.0

@@ -1254,7 +1254,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             scores, noise = _score(rec, prior, models)
             rec = _ordered(rec, scores)
     if len(rec.touches) > 1 and _would_recognise(rec, prior, n, noise):
-        with timed("adequacy"):
+        with timed("transfer"):
             rec = _transferred(rec, models, fits, noise)
             scores, noise = _score(rec, prior, models)
             rec = _ordered(rec, scores)
@@ -1316,7 +1316,7 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             t_wide += time.perf_counter() - t1
         if _would_be_named(rec, prior, n, noise):
             t1 = time.perf_counter()
-            with timed("dense"):
+            with timed("transfer"):
                 rec = _transferred(rec, models, fits, noise)
                 scores, noise = _score(rec, prior, models)
                 rec = _ordered(rec, scores)
