@@ -1323,7 +1323,6 @@ def _with_verdict(rec: Recognition, fits: dict, models: list, method: str, run=N
             t_wide += time.perf_counter() - t1
     with timed("scoring"):
         t1 = time.perf_counter()
-        own, _ = _noise_and_points(rec)
         mesh_error = _model_error(rec, models)
         if mesh_error > defaults.MODEL_ERROR_NOTE * own:
             cautions.append(
