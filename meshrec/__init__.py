@@ -51,7 +51,7 @@ _WHERE = {
     "next_touch": "meshrec.recognition.advice",
     "JointFit": "meshrec.recognition.joint",
     "register_touches": "meshrec.recognition.joint",
-    "Recognition": "meshrec.recognition.recognize",
+    "Recognition": "meshrec.recognition.result",
     "LibraryScreen": "meshrec.recognition.screen",
     "LibrarySites": "meshrec.recognition.screen",
     "library_sites": "meshrec.recognition.screen",
@@ -120,7 +120,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from meshrec.recognition.joint import JointFit, register_touches
     from meshrec.recognition.phases import PhaseTimes
     from meshrec.recognition.probing import ProbeOffset
-    from meshrec.recognition.recognize import Recognition, recognize
+    from meshrec.recognition.recognize import recognize
+    from meshrec.recognition.result import Recognition
     from meshrec.recognition.scoring import VERDICTS, ModelScore, Verdict, WeightedPose
     from meshrec.registration.brackets import PhiBrackets, phi_brackets, refine_phis
     from meshrec.registration.candidates import curvature_tolerance

@@ -449,7 +449,7 @@ TOUCH_COPY_FRACTION = 1e-7
 #: place differs by its own noise, several times the scatter at some point.
 TOUCH_COPY_NOISE_FRACTION = 0.25
 
-# --- before a model is named: its poses tried on the others (recognize._transferred) -------
+# --- before a model is named: its poses tried on the others (naming._transferred) -------
 #: The named model's best poses (least RMS first) refined on every other model ...
 TRANSFER_POSES = 4
 #: ... where one starts within this factor of the named model's RMS (or of the noise, if
@@ -459,7 +459,7 @@ TRANSFER_POSES = 4
 TRANSFER_REACH = 3.0
 
 # --- calibrated scores and the verdict (meshrec.recognition.scoring) -----------------------
-#: The model meshes' own error joins the noise the scores take (recognize._model_error):
+#: The model meshes' own error joins the noise the scores take (rescore.model_error):
 #: that of every model whose best fit comes within this factor of the best RMS (a rough
 #: mesh's right model fits worse than the touch's noise alone explains).
 MODEL_ERROR_REACH = 2.0
@@ -537,7 +537,7 @@ LOOKUP_WIDEN_SCALE = 4.0
 LOOKUP_DENSE_CANDIDATES = 256
 #: One touch about to be `recognised`: the named model is registered again with up to this
 #: many candidates (where its window held more sites than MAX_CANDIDATES) and keeps the
-#: better fit, before its pose is given (recognize._confirmed). Measured (stop 31): six
+#: better fit, before its pose is given (naming._confirmed). Measured (stop 31): six
 #: short touches of a superellipsoid and a cone that a probe found `recognised` with the
 #: pose `fixed` 8 to 34 mm off; the five re-run all found the true pose with 256 (with the
 #: window widened 4 times instead, four of five), in 0.3 to 0.5 s each.
@@ -846,7 +846,7 @@ PAIR_REFINE_SEEDS = 32
 PAIR_SEARCH_GAP = 3.0
 #: Several touches that no model fits, some of them rough (across an edge): this many of
 #: the best models by joint fit are searched from pairs of touches with the window
-#: widened, whatever their bound (recognize._search_rough_touches).
+#: widened, whatever their bound (passes._search_rough_touches).
 ROUGH_PAIR_MODELS = 8
 
 # --- ball-tipped probes (meshrec.contact.probe, meshrec.recognition.probing) ---------------

@@ -1,5 +1,5 @@
 """One touch about to be `recognised`: the named model's search is confirmed with more
-candidates before its pose is given (recognize._confirmed)."""
+candidates before its pose is given (naming._confirmed)."""
 
 from __future__ import annotations
 

@@ -479,19 +479,19 @@ def test_a_named_pose_must_fit_every_touch(three_on_ellipsoid):
     # 5e-5, the others at 0.65) holds the name back
     from types import SimpleNamespace
 
-    from meshrec.recognition.recognize import _every_touch_hold
+    from meshrec.recognition.holds import every_touch_hold
     from meshrec.recognition.scoring import Verdict
 
     _touches, _sims, _T, rec = three_on_ellipsoid
     noise = 0.001
     named = Verdict("recognised", ("ellipsoid",), "ellipsoid has probability 1.000", 1.0)
     fine = SimpleNamespace(touch_rms=(0.9 * noise, 1.0 * noise, 1.05 * noise))
-    assert _every_touch_hold(named, rec, fine, noise) is named
+    assert every_touch_hold(named, rec, fine, noise) is named
     off = SimpleNamespace(touch_rms=(0.65 * noise, 0.65 * noise, 1.6 * noise))
-    held = _every_touch_hold(named, rec, off, noise)
+    held = every_touch_hold(named, rec, off, noise)
     assert held.verdict == "ambiguous"
     assert held.plausible == ("ellipsoid",)
     assert "fits touch 3 at 1.6 times the noise" in held.reason
     # not a named answer: left as it is
     vague = Verdict("ambiguous", ("ellipsoid", "capsule"), "two fit", 1.0)
-    assert _every_touch_hold(vague, rec, off, noise) is vague
+    assert every_touch_hold(vague, rec, off, noise) is vague

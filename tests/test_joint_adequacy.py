@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 from seeded_touches import touches_at, world_pose
 
 import meshrec
-from meshrec.recognition import recognize as recognize_module
+from meshrec.recognition import passes as passes_module
 
 YCB = Path(__file__).resolve().parents[2] / "shared" / "data" / "ycb"
 
@@ -33,13 +33,13 @@ def test_a_leader_fitting_worse_than_the_noise_is_searched_again_from_pairs(tmp_
     rng = np.random.default_rng(4)
     touches, _ = touches_at(big, world_pose(rng), rng)
     searched = []
-    original = recognize_module.search_pairs
+    original = passes_module.search_pairs
 
     def spy(touches, model, *args, **kwargs):
         searched.append(model.name)
         return original(touches, model, *args, **kwargs)
 
-    monkeypatch.setattr(recognize_module, "search_pairs", spy)
+    monkeypatch.setattr(passes_module, "search_pairs", spy)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rec = meshrec.recognize(touches, library)

@@ -1,7 +1,7 @@
 """Several touches of a box's edges: every pose the touches allow is searched for before
-one is given (recognize._search_lone_leader, the longest pair of touches that match the
+one is given (passes.search_lone_leader, the longest pair of touches that match the
 model), and touches across edges that no model fits are searched from pairs whatever
-their bound (recognize._search_rough_touches)."""
+their bound (passes._search_rough_touches)."""
 
 from __future__ import annotations
 

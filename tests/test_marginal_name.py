@@ -1,5 +1,5 @@
 """One touch whose best fit is marginal is looked at harder before a model is named
-(``defaults.NAME_P_VALUE``; recognize._looked_harder)."""
+(``defaults.NAME_P_VALUE``; passes.looked_harder)."""
 
 from __future__ import annotations
 

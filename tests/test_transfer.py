@@ -1,5 +1,5 @@
 """Before a model is named, its poses are tried on the other models
-(meshrec.recognition.joint.transferred_poses, recognize._transferred)."""
+(meshrec.recognition.joint.transferred_poses, naming._transferred)."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ import meshrec
 from meshrec import defaults
 from meshrec.bench import paper_touch
 from meshrec.recognition import jobs as jobs_module
-from meshrec.recognition import recognize as recognize_module
+from meshrec.recognition import passes as passes_module
 from meshrec.registration.register import touch_geometry
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -161,7 +161,7 @@ def test_a_denser_look_where_the_window_held_fewer_sites_than_the_cap_changes_no
 
 @pytest.mark.parametrize(
     ("cascade", "module", "name"),
-    [(False, jobs_module, "register"), (True, recognize_module, "cascade_register")],
+    [(False, jobs_module, "register"), (True, passes_module, "cascade_register")],
 )
 def test_warnings_raised_inside_are_kept_and_passed_on(
     surfaces, monkeypatch, cascade, module, name

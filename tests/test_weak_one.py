@@ -1,5 +1,5 @@
 """One touch about to be named: the poses along the best pose's weak motions are
-explored before its pose is given as fixed (recognize._explore_weak_motions_one)."""
+explored before its pose is given as fixed (naming._explore_weak_motions_one)."""
 
 from __future__ import annotations
 

@@ -29,7 +29,7 @@ from meshrec.app.parallel import add_workers_args, model_workers
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from meshrec.recognition.recognize import Recognition
+    from meshrec.recognition.result import Recognition
 
 __all__ = ["main", "recognition_to_json"]
 

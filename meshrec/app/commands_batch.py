@@ -14,7 +14,8 @@ from meshrec.app.inputs import (
     touch_in_units,
     with_probe_radius,
 )
-from meshrec.recognition.recognize import Recognition, recognize
+from meshrec.recognition.recognize import recognize
+from meshrec.recognition.result import Recognition
 from meshrec.registration.register import touch_geometry
 
 __all__ = ["run_batch"]

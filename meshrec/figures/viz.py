@@ -302,7 +302,7 @@ def _check_size(size) -> tuple[int, int]:
 
 def _pick_registration(result, model, touch):
     """The registration to show and its touch, from a Recognition or a Registration."""
-    from meshrec.recognition.recognize import Recognition
+    from meshrec.recognition.result import Recognition
     from meshrec.registration.register import Registration
 
     if isinstance(result, Recognition):

@@ -43,7 +43,7 @@ from meshrec.io.checks import (
 )
 from meshrec.model.index import ModelIndex
 from meshrec.model.library import ModelLibrary
-from meshrec.recognition.recognize import Recognition
+from meshrec.recognition.result import Recognition
 from meshrec.recognition.scoring import effective_points
 
 __all__ = ["CRITERIA", "TouchAdvice", "next_touch", "point_text"]

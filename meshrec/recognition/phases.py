@@ -90,7 +90,7 @@ class PhaseTimes:
         answer (0 when neither ran).
     transfer : float
         Before a model is named (one touch or several): its best poses refined on the
-        other models, and the scores again (``recognize._transferred``).
+        other models, and the scores again (``naming._transferred``).
     scoring : float
         The scores, the flat prior, the verdict and its cautions.
     freedom : float
