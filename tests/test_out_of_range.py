@@ -33,9 +33,7 @@ def small(tmp_path_factory):
     e.apply_scale([0.02, 0.0155, 0.01])
     e.export(folder / "ellipsoid.stl")
     trimesh.creation.cone(radius=0.012, height=0.03, sections=48).export(folder / "cone.stl")
-    trimesh.creation.cylinder(radius=0.01, height=0.03, sections=12).export(
-        folder / "cylinder.stl"
-    )
+    trimesh.creation.cylinder(radius=0.01, height=0.03, sections=12).export(folder / "cylinder.stl")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=root / "cache")
@@ -105,8 +103,14 @@ def test_cli_says_the_best_model_is_not_named(small, tmp_path, capsys):
     assert (rec.verdict, rec.plausible) == ("ambiguous", ("ellipsoid",))
     assert rec.pose_freedom.fixed
     code = main(
-        ["recognize", str(tmp_path / "touch.csv"), "--models", str(folder),
-         "--cache-dir", str(tmp_path / "cache")]
+        [
+            "recognize",
+            str(tmp_path / "touch.csv"),
+            "--models",
+            str(folder),
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ]
     )
     out = capsys.readouterr().out
     assert code == 0
@@ -155,3 +159,68 @@ def test_one_touch_far_rougher_than_its_noise_names_no_model(tmp_path):
     assert len(rec.plausible) == 1
     assert "the curves fit no smooth surface patch" in rec.reason
     assert "defaults.ROUGH_HOLD_RATIO" in rec.reason
+
+
+def _bracket(tmp_path):
+    """A sheet-metal L-bracket in mm (1.5 thick, inner bend radius 2, legs 30 and 20, 25
+    wide), the profile extruded with manifold3d: a black-box probe's part (stop 34)."""
+    import numpy as np
+    from manifold3d import CrossSection
+
+    def densify(pts, ds=0.6):
+        out = []
+        for i in range(len(pts)):
+            a, b = np.asarray(pts[i], float), np.asarray(pts[(i + 1) % len(pts)], float)
+            k = max(1, int(np.ceil(np.linalg.norm(b - a) / ds)))
+            out += [tuple(a + (b - a) * j / k) for j in range(k)]
+        return out
+
+    def arc(c, r, a0, a1, n):
+        return [(c + r * np.cos(t), c + r * np.sin(t)) for t in np.linspace(a0, a1, n)]
+
+    r, t = 2.0, 1.5
+    c = r + t
+    pts = [(30.0, 0.0), *arc(c, c, -np.pi / 2, -np.pi, 20), (0.0, 20.0), (t, 20.0)]
+    pts += [*arc(c, r, -np.pi, -np.pi / 2, 16), (30.0, t)]
+    section = CrossSection([densify(pts)])
+    if section.area() <= 0:
+        section = CrossSection([densify(pts[::-1])])
+    m = section.extrude(25.0, 41).to_mesh()
+    folder = tmp_path / "models"
+    folder.mkdir()
+    V, F = np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts)
+    trimesh.Trimesh(V, F).export(folder / "bracket.stl")
+    return meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+
+
+def test_a_touch_that_fits_nothing_with_its_curvature_out_of_range_opens_the_window(tmp_path):
+    # A black-box probe (stop 34): 15 mm curves over a bracket's outer bend (radius 3.5),
+    # 1 mm from its side edge. The curvature estimated (K 0.055, the curves turning 2.2
+    # radians) matches no site of the bracket (K 0 on its bend), even in the widened
+    # window: every model was rejected and the answer was `unknown`, "the object is
+    # probably not in the library". Now the models the widened lookup rejected are
+    # registered on every site first.
+    library = _bracket(tmp_path)
+    sim = meshrec.simulate_touch(
+        library["bracket"],
+        contact=(1.0251262658470834, 1.0251262658470834, 1.0),
+        rng=10200,
+        n_points=41,
+        noise=0.01,
+        length=15.0,
+        transform=False,
+    )
+    touch = sim.touch.with_hints(normal=sim.normal)
+    g = touch_geometry(touch)
+    assert max(abs(g.k1), abs(g.k2)) * g.half_length > defaults.CURVATURE_MAX_TURN
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize(touch, library)
+    assert rec.verdict != "unknown"
+    assert rec.best is not None
+    assert rec.best.model == "bracket"
+    assert "bracket" in rec.plausible
+    assert any("registered on every site (1 registered)" in w for w in rec.warnings)
+    # the denser look ran on no model (no window held more sites than the cap), and the
+    # caution no longer says it did
+    assert not any("256 candidates" in w for w in rec.warnings)

@@ -346,6 +346,11 @@ def looked_harder(
     ``defaults.LOOKUP_DENSE_CANDIDATES`` candidates on the models whose widened window
     held more than the cap. Each model keeps its best fit of all.
 
+    A touch whose curvature estimate is out of its range (:func:`curvature_turn` above
+    ``defaults.CURVATURE_MAX_TURN``) and still fits nothing that well has the models the
+    widened lookup rejected registered on every site
+    (``defaults.LOOKUP_OPEN_SCALE``).
+
     Returns ``(recognition, noise, run, how)``: ``run`` is started here when None, and
     ``how`` says what was done (for the caution).
     """
@@ -366,13 +371,37 @@ def looked_harder(
         # thin, rough scan; a box's flat faces), the spread candidates lie too far apart to
         # start from; look once more among more of them (on the models where the window
         # held more than the cap: the others would get the same candidates).
-        dense = {"max_candidates": defaults.LOOKUP_DENSE_CANDIDATES, "only": capped}
-        rec, noise, run = looked_again(rec, prior, models, method, run, "dense", **dense)
-        how = (
-            f"every model registered again, then once more with up to "
-            f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates where the window held more "
-            f"than {defaults.MAX_CANDIDATES} sites"
-        )
+        if capped:
+            dense = {"max_candidates": defaults.LOOKUP_DENSE_CANDIDATES, "only": capped}
+            rec, noise, run = looked_again(rec, prior, models, method, run, "dense", **dense)
+            how += (
+                f", then once more with up to {defaults.LOOKUP_DENSE_CANDIDATES} candidates "
+                f"on the {len(capped)} model(s) whose window held more than "
+                f"{defaults.MAX_CANDIDATES} sites"
+            )
+        turn = curvature_turn(rec.geometry)
+        rejected = frozenset(r.model for r in rec.ranking if r.rejected)
+        if (
+            turn > defaults.CURVATURE_MAX_TURN
+            and rejected
+            and fits_below(rec, n, noise_and_points(rec)[0], p_value)
+        ):
+            # The curvature estimate is out of its range (curves long against the radius
+            # of curvature, or across an edge: a probe, stop 34, touched a sheet-metal
+            # bracket's bend next to its side edge, K estimated 0.055 where the bend has
+            # 0, and every model was rejected, "the object is probably not in the
+            # library"): even the widened window, built on that estimate, can miss the
+            # right model, so the models it rejected are registered on every site.
+            opened = {"only": rejected, "lookup_scale": defaults.LOOKUP_OPEN_SCALE}
+            rec, noise, run = looked_again(rec, prior, models, method, run, "widened", **opened)
+            found = sum(1 for r in rec.ranking if r.model in rejected and not r.rejected)
+            how += (
+                f"; the curvature estimate being out of its range (the curves would turn by "
+                f"{turn:.3g} radians over their half-length, more than "
+                f"defaults.CURVATURE_MAX_TURN = {defaults.CURVATURE_MAX_TURN:g}), the "
+                f"{len(rejected)} model(s) the lookup still rejected were registered on every "
+                f"site ({found} registered)"
+            )
     return rec, noise, run, how
 
 
