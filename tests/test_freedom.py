@@ -7,6 +7,8 @@ turns about its centre, an ellipsoid none.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -210,6 +212,12 @@ def test_turn_about_a_cylinders_axis_is_a_symmetry_and_the_slide_along_it_is_not
     assert f.turn_symmetric == (True,)
     assert f.unresolved == 1
     assert "1 of them a symmetry" in f.description
+    # every free motion a symmetry (the slide pinned): the pose is fixed, and says so
+    pinned = dataclasses.replace(
+        f, free=1, slides=0, slide_symmetric=(), slide_directions=np.zeros((0, 3))
+    )
+    assert pinned.fixed
+    assert pinned.description == "fixed up to the model's symmetry (1 turn)"
 
 
 def test_turn_about_a_box_faces_normal_is_no_symmetry():

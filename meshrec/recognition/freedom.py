@@ -105,8 +105,9 @@ class PoseFreedom(ValueEquality):
 
     @property
     def description(self) -> str:
-        """A short phrase: "fixed", e.g. "free: 2 slides and 1 turn", or "one of 2 poses
-        that fit about equally well (this one's weight 0.50)"."""
+        """A short phrase: "fixed", "fixed up to the model's symmetry (1 turn)", e.g.
+        "free: 2 slides and 1 turn", or "one of 2 poses that fit about equally well (this
+        one's weight 0.50)"."""
         if self.alternatives:
             text = (
                 f"one of {self.alternatives + 1} poses that fit about equally well (this "
@@ -115,16 +116,25 @@ class PoseFreedom(ValueEquality):
             return text if self.free == 0 else f"{text}; {self._free_phrase()}"
         if self.free == 0:
             return "fixed"
+        if self.unresolved == 0:
+            # every free motion a symmetry of the model: the pose is fixed (a probe read
+            # "free: 1 turn (1 of them a symmetry of the model)" beside fixed = True as
+            # contradicting it)
+            return f"fixed up to the model's symmetry ({self._motions()})"
         return self._free_phrase()
 
-    def _free_phrase(self) -> str:
-        """E.g. "free: 2 slides and 1 turn (1 of them a symmetry of the model)"."""
+    def _motions(self) -> str:
+        """E.g. "2 slides and 1 turn"."""
         words = []
         if self.slides:
             words.append(f"{self.slides} slide{'s' if self.slides > 1 else ''}")
         if self.turns:
             words.append(f"{self.turns} turn{'s' if self.turns > 1 else ''}")
-        text = "free: " + " and ".join(words)
+        return " and ".join(words)
+
+    def _free_phrase(self) -> str:
+        """E.g. "free: 2 slides and 1 turn (1 of them a symmetry of the model)"."""
+        text = "free: " + self._motions()
         symmetric = sum(self.slide_symmetric) + sum(self.turn_symmetric)
         if symmetric:
             text += f" ({symmetric} of them a symmetry of the model)"
