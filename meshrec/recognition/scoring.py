@@ -416,7 +416,8 @@ def decide(
             "unknown",
             (),
             "no model could be registered (the curvature lookup found no candidate contact "
-            "on any model, even with a widened window): the object is probably not in the "
+            "on any model, even with a widened window, or, with a normal given, every pose "
+            "found put the touch through the surface): the object is probably not in the "
             "library",
             float("inf"),
         )

@@ -210,7 +210,12 @@ def pose_hypotheses(
     Returns
     -------
     tuple of PoseHypothesis
-        One per refined search (duplicates included; see :func:`distinct_poses`).
+        One per refined search (duplicates included; see :func:`distinct_poses`), but
+        for those that put the touch on the wrong side of the surface: where the side is
+        known (``candidates.sides`` holds one: a normal given with the touch on a closed
+        model, or the one side a ball tip can trace), a refinement that carried the data
+        through the surface (a thin wall: the touch's normal, placed, then points into
+        the material) is no placement of the touch. Empty when every one did.
 
     Raises
     ------
@@ -223,6 +228,7 @@ def pose_hypotheses(
     check_instance(searches, Searches, "searches")
     refined = _items(refined, RefinedSearch, "refined")
     out = []
+    known_side = len(candidates.sides) == 1
     for r in refined:
         run = searches.runs[r.run]
         side = candidates.sides[candidates.side[run.candidate]]
@@ -230,6 +236,11 @@ def pose_hypotheses(
         guess = apply_transform(T, candidates.geometry.point[None, :])
         _, closest, face = model.surface.closest_points(guess)
         normal = model.surface.interpolated_normals(closest, face)[0]
+        if known_side and float(normal @ (T[:3, :3] @ side.frame[:, 2])) < 0.0:
+            # Through the surface: a probe (stop 34) touched a 1 mm-walled tube's inside,
+            # normal given, and the refinement carried the data from the inner wall to
+            # the outer one, where the tube was then scored (and a ball tip suggested).
+            continue
         frame = tangent_frame(normal, hint=run.result.surface.frame[:, 0])
         placed_x = T[:3, :3] @ side.frame[:, 0]
         phi = float(np.arctan2(placed_x @ frame[:, 1], placed_x @ frame[:, 0]) % (2.0 * np.pi))

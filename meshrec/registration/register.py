@@ -159,7 +159,8 @@ class Registration(ValueEquality):
 
     @property
     def rejected(self) -> bool:
-        """True when the table lookup found no candidate on this model."""
+        """True when the table lookup found no candidate on this model (or every pose
+        found put the touch through the surface, against its given normal: ``reason``)."""
         return self.error is None
 
     def __repr__(self) -> str:
@@ -354,7 +355,8 @@ class CoarseRegistration(ValueEquality):
 
     @property
     def rejected(self) -> bool:
-        """True when the table lookup found no candidate on this model."""
+        """True when the table lookup found no candidate on this model (or every pose
+        found put the touch through the surface, against its given normal: ``reason``)."""
         return self.screening is None
 
     @property
@@ -509,6 +511,24 @@ def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float,
             **common,
         )
     poses = distinct_poses(stages.hypotheses, float(cands.geometry.half_length))
+    if not poses:
+        # every refined pose carried the data through the surface, against the side
+        # given (meshrec.registration.poses.pose_hypotheses): no placement on this model
+        return Registration(
+            error=None,
+            contact=None,
+            normal=None,
+            phi=None,
+            T_model_touch=None,
+            candidates=len(cands),
+            raw_hits=cands.raw_hits,
+            searches=len(stages.searches.runs),
+            reason=(
+                "every pose found put the touch through the surface, against its given "
+                "normal (the data fit the far side of a thin wall better)"
+            ),
+            **common,
+        )
     best = poses[0]
     return Registration(
         error=best.error,
