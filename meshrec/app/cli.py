@@ -325,7 +325,11 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
         if rec.best is None:
             what = "no model could be registered"
         else:
-            what = f"not in the library (best fit: {rec.best.model})"
+            # the reason's own doubt (a touch across an edge or a rim, where the search
+            # may have missed the pose) is kept in the one line a script reads
+            doubt = "its pose was missed" in rec.reason or "may still be in" in rec.reason
+            missed = ", or its pose was missed" if doubt else ""
+            what = f"not in the library{missed} (best fit: {rec.best.model})"
     out.write(f"{rec.verdict}: {what}  ({rec.seconds:.2f} s)\n")
 
 

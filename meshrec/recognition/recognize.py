@@ -212,7 +212,8 @@ def recognize(
                     rec = with_pose_freedom(rec, seen, memo)
                 with timed("cautions"):
                     _warn_coarse(rec, models)
-                    rec = across_an_edge(rec, warn_sharp_edges(rec, seen))
+                    crossed = warn_sharp_edges(rec, seen)
+                    rec = _edge_caveat(across_an_edge(rec, crossed), crossed)
                 if radius == 0.0:
                     with timed("probe_offset"):
                         rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
@@ -519,6 +520,37 @@ def _with_verdict(
         widened_seconds=t_wide,
         touch_rms=per_touch,
     )
+
+
+def _edge_caveat(rec: Recognition, crossed: int) -> Recognition:
+    """One touch across a sharp edge of the best model that names none (``ambiguous`` or
+    ``unknown``): the reason says that there a model's search can miss its pose, so the
+    touched model may be missing from ``plausible`` (or from the library's fits).
+
+    A black-box probe (stop 34) touched a cup's inner corner and a tray's 1.5 mm rim: the
+    answers were `ambiguous` among other parts, the touched one left out although its
+    true pose fitted as well or better; a washer's top, the curves wrapping both its
+    edges, was `unknown`. (A touch ``recognised`` across an edge is held back by
+    :func:`~meshrec.recognition.holds.across_an_edge`, whose reason says so already.)
+    """
+    if (
+        len(rec.touches) != 1
+        or crossed < 2
+        or rec.best is None
+        or rec.verdict == "recognised"
+        or "crosses a sharp edge" in rec.reason
+        or "its pose was missed" in rec.reason
+    ):
+        return rec
+    where = (
+        f"the touch crosses a sharp edge (at the best pose its points lie on {crossed} faces "
+        f"or smooth patches of {rec.best.model}), where a model's search can miss its pose"
+    )
+    if rec.verdict == "ambiguous":
+        tail = f"{where}: the touched model may be missing from these; touch again away from edges"
+    else:
+        tail = f"{where}: the object may still be in the library; touch again away from edges"
+    return dataclasses.replace(rec, reason=f"{rec.reason}; {tail}")
 
 
 def _inward_hint(rec: Recognition, reason: str) -> str:
