@@ -133,6 +133,14 @@ class LocalGeometry(ValueEquality):
         2-norm condition number of the Euler least-squares system, rows
         (cos^2, 2 cos sin, sin^2) of each tangent's angle: sqrt(2) for three tangents 60
         degrees apart, 68 for 0, 10, 20 degrees; large means nearly parallel tangents.
+    curvature_sd : float
+        The standard error of the principal curvatures, 1 / data units: each curve's
+        curvature at p has its least-squares fit's deviation (``fit_rms`` times the fit's
+        own gain: larger where the curve's samples lie on one side of p), carried through
+        Euler's formula to the shape operator, whose error bounds the principal
+        curvatures' (the root of its squared entries' summed variances). The (K, H)
+        lookup's window is at least ``defaults.CANDIDATE_SD_FACTOR`` of it (see
+        :func:`meshrec.registration.candidates.curvature_tolerance`); 0 when not computed.
     noise_rms : float
         The data noise along the surface normal estimated without any model of the shape,
         from the third differences d of consecutive samples along each curve, each taken
@@ -155,6 +163,7 @@ class LocalGeometry(ValueEquality):
     half_length: float
     condition: float
     noise_rms: float
+    curvature_sd: float = 0.0
 
     @property
     def fit_to_noise(self) -> float:
@@ -196,6 +205,7 @@ class LocalGeometry(ValueEquality):
             half_length=self.half_length,
             condition=self.condition,
             noise_rms=self.noise_rms,
+            curvature_sd=self.curvature_sd,
         )
 
 
@@ -435,6 +445,9 @@ class _CurveFit:
     residuals: np.ndarray  # (m, 3) residual of each fitted sample, across the fitted curve
     tangents: np.ndarray  # (m, 3) unit tangent of the fitted curve at each fitted sample
     n_coefficients: int  # polynomial coefficients per coordinate
+    # standard error of the curvature at p per unit of noise (one coordinate's deviation):
+    # from the fit's covariance, large where p lies near an end of the fitted samples
+    curvature_gain: float = 0.0
 
 
 def _smoothing_width(points: np.ndarray) -> int:
@@ -540,6 +553,14 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
         )
     t = r1 / np.sqrt(speed2)
     kappa = (r2 - (r2 @ t) * t) / speed2
+    # The second coefficient's variance per unit noise variance ((V^T V)^-1 of the
+    # Vandermonde rows in v): a curve whose fitted samples lie on one side of p (trimmed,
+    # or its sampling cut short) extrapolates its curvature to p, many times less
+    # precisely than one centred on p (numpy's polyfit returns no covariance without a
+    # weighted refit; this is the same matrix, from its own design).
+    vander = np.vander(v, deg + 1, increasing=True)
+    inv = np.linalg.pinv(vander.T @ vander)
+    gain = 2.0 * float(np.sqrt(max(inv[2, 2], 0.0))) / scale**2 / speed2
 
     # residuals across the fitted curve (the along-curve part is absorbed by the parameter)
     resid = pw - npoly.polyval(v, coef).T
@@ -556,6 +577,7 @@ def _fit_curve(points: np.ndarray, p: np.ndarray, degree: int, name: str) -> _Cu
         residuals=resid,
         tangents=tang,
         n_coefficients=deg + 1,
+        curvature_gain=gain,
     )
 
 
@@ -912,6 +934,11 @@ def estimate_local_geometry(
         )
     kn = -(kappas @ n)
     (ll, mm, nn), *_ = np.linalg.lstsq(a, kn, rcond=None)
+    # the normal curvatures' standard errors carried to the shape operator (ll, mm, nn)
+    solve = np.linalg.pinv(a)
+    sd_kn = coordinate_rms * np.array([f.curvature_gain for f in fits])
+    cov = (solve * sd_kn**2) @ solve.T
+    curvature_sd = float(np.sqrt(max(cov[0, 0] + 2.0 * cov[1, 1] + cov[2, 2], 0.0)))
     shape = np.array([[ll, mm], [mm, nn]])
     w, v = np.linalg.eigh(shape)
     k2, k1 = float(w[0]), float(w[1])
@@ -934,6 +961,7 @@ def estimate_local_geometry(
         half_length=half_length,
         condition=condition,
         noise_rms=_third_difference_noise(cs, n),
+        curvature_sd=curvature_sd,
     )
     # orientation: the pre-flip normal is canonical (largest component positive)
     flip = float(n @ hint) < 0.0 if hint is not None else geom.H < 0.0

@@ -115,4 +115,7 @@ def surface_geometry(geometry: LocalGeometry, probe_radius: float) -> LocalGeome
         half_length=geometry.half_length,
         condition=geometry.condition,
         noise_rms=geometry.noise_rms,
+        # k / (1 - R k) stretches an error in k by 1 / (1 - R k)^2
+        curvature_sd=geometry.curvature_sd
+        * max(1.0 / (1.0 - R * geometry.k1) ** 2, 1.0 / (1.0 - R * geometry.k2) ** 2),
     )

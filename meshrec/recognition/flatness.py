@@ -55,7 +55,13 @@ def flat_tolerance(geometry: LocalGeometry) -> float | None:
         If ``geometry`` is not a LocalGeometry.
     """
     check_instance(geometry, LocalGeometry, "geometry")
-    _, tau = curvature_tolerance(geometry.k1, geometry.k2, geometry.half_length, geometry.fit_rms)
+    _, tau = curvature_tolerance(
+        geometry.k1,
+        geometry.k2,
+        geometry.half_length,
+        geometry.fit_rms,
+        curvature_sd=geometry.curvature_sd,
+    )
     if max(abs(geometry.k1), abs(geometry.k2)) <= tau:
         return float(tau)
     return None

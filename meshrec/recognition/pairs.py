@@ -139,7 +139,9 @@ class _Side(NamedTuple):
 
 def _spread(model, side: LocalGeometry, lookup_scale: float) -> _Side:
     """One touch side and its matching model points, spread over the surface."""
-    tol_K, tol_H = curvature_tolerance(side.k1, side.k2, float(side.half_length), side.fit_rms)
+    tol_K, tol_H = curvature_tolerance(
+        side.k1, side.k2, float(side.half_length), side.fit_rms, curvature_sd=side.curvature_sd
+    )
     tol_K, tol_H = tol_K * lookup_scale, tol_H * lookup_scale
     hits = model.curvature.lookup(side.K, side.H, tol_K, tol_H)
     kappa = max(abs(side.k1), abs(side.k2)) + tol_H

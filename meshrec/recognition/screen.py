@@ -297,7 +297,9 @@ def screen_library(touch: TouchData, geometry: LocalGeometry, sites: LibrarySite
     hit_site, hit_side = [], []
     for s, side in enumerate(_sides(geometry)):
         use_model = sites.screened & (two_sides if s == 1 else True)
-        tol_K, tol_H = curvature_tolerance(side.k1, side.k2, hl, side.fit_rms)
+        tol_K, tol_H = curvature_tolerance(
+            side.k1, side.k2, hl, side.fit_rms, curvature_sd=side.curvature_sd
+        )
         K, H = side.k1 * side.k2, 0.5 * (side.k1 + side.k2)
         lo, hi = sites.lo, sites.hi
         match = (lo[:, 0] - tol_K <= K) & (hi[:, 0] + tol_K >= K)

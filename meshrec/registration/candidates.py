@@ -48,6 +48,7 @@ def curvature_tolerance(
     fit_rms: float,
     rel: float = defaults.CANDIDATE_REL_TOL,
     noise_factor: float = defaults.CANDIDATE_NOISE_FACTOR,
+    curvature_sd: float = 0.0,
 ) -> tuple[float, float]:
     """Tolerances on (K, H) derived from the expected error of the principal curvatures.
 
@@ -59,7 +60,10 @@ def curvature_tolerance(
     ``tol_K = tau (|k1| + |k2|) + tau^2``. The defaults hold the true contact's table
     entry for every one of 160 simulated touches on the paper's surfaces (noise +-0.001,
     seeds 0-39 per surface), the tolerance at least 3.2 times the actual mismatch
-    (measured with ``tools/tolerance_study.py``).
+    (measured with ``tools/tolerance_study.py``). ``tau`` is at least
+    ``defaults.CANDIDATE_SD_FACTOR`` times the estimate's own standard error
+    (:attr:`~meshrec.contact.geometry.LocalGeometry.curvature_sd`), which the curves'
+    length and noise alone understate where a curve's samples lie on one side of p.
 
     Parameters
     ----------
@@ -71,6 +75,8 @@ def curvature_tolerance(
         RMS residual of the curve fits, an estimate of the data's noise.
     rel, noise_factor : float
         The relative and the noise-driven parts of the tolerance.
+    curvature_sd : float
+        The principal curvatures' standard error (0: not known).
 
     Returns
     -------
@@ -90,11 +96,13 @@ def curvature_tolerance(
     fit_rms = check_number(fit_rms, "fit_rms")
     rel = check_number(rel, "rel", minimum=0.0)
     noise_factor = check_number(noise_factor, "noise_factor", minimum=0.0)
+    curvature_sd = check_number(curvature_sd, "curvature_sd", minimum=0.0)
     if not half_length > 0:
         raise ValueError(f"half_length must be positive, got {half_length!r}")
     if not fit_rms >= 0:
         raise ValueError(f"fit_rms must be non-negative, got {fit_rms!r}")
     tau = rel * max(abs(k1), abs(k2)) + noise_factor * fit_rms / half_length**2
+    tau = max(tau, defaults.CANDIDATE_SD_FACTOR * curvature_sd)
     return tau * (abs(k1) + abs(k2)) + tau * tau, tau
 
 
@@ -138,6 +146,7 @@ def find_candidates(
     fit_rms: float,
     max_candidates: int = defaults.MAX_CANDIDATES,
     lookup_scale: float = 1.0,
+    curvature_sd: float = 0.0,
 ) -> CandidateSet:
     """Look up the curvature sites of ``model`` whose (K, H) match, then spread them.
 
@@ -156,6 +165,8 @@ def find_candidates(
     lookup_scale : float
         Factor widening both tolerances of :func:`curvature_tolerance` (1: as
         calibrated; larger looks harder, for more candidates).
+    curvature_sd : float
+        The principal curvatures' standard error (see :func:`curvature_tolerance`).
 
     Returns
     -------
@@ -175,7 +186,7 @@ def find_candidates(
     ):
         raise ValueError(f"lookup_scale must be a positive finite number, got {lookup_scale!r}")
     K, H = k1 * k2, 0.5 * (k1 + k2)
-    tol_K, tol_H = curvature_tolerance(k1, k2, half_length, fit_rms)
+    tol_K, tol_H = curvature_tolerance(k1, k2, half_length, fit_rms, curvature_sd=curvature_sd)
     if lookup_scale != 1.0:
         tol_K, tol_H = tol_K * lookup_scale, tol_H * lookup_scale
     hits = model.curvature.lookup(K, H, tol_K, tol_H)

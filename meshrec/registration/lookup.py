@@ -180,6 +180,7 @@ def lookup_candidates(
             side.fit_rms,
             max_candidates=max_candidates,
             lookup_scale=lookup_scale,
+            curvature_sd=side.curvature_sd,
         )
         raw_hits += cand.raw_hits
         local_points.append((points - side.point) @ side.frame)
