@@ -495,3 +495,40 @@ def test_a_named_pose_must_fit_every_touch(three_on_ellipsoid):
     # not a named answer: left as it is
     vague = Verdict("ambiguous", ("ellipsoid", "capsule"), "two fit", 1.0)
     assert every_touch_hold(vague, rec, off, noise) is vague
+
+
+def test_a_flat_touch_that_fits_alone_is_not_taken_as_the_good_one(tmp_path):
+    # A black-box probe (stop 34): the gelatin box's top and side, then the table: the
+    # reason said touch 3 (the table) fits models alone and touches 1 and 2 fit none, and
+    # an engineer would have kept the table. Here two touches of a torus (not in the
+    # folder) and one of a plane, against a box and an ellipsoid: the plane fits the box's
+    # face, and the reason says that touch is flat, fitting any flat patch.
+    import trimesh
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    box = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    for _ in range(3):
+        box = box.subdivide()
+    box.export(folder / "box.stl")
+    egg = trimesh.creation.icosphere(subdivisions=4)
+    egg.apply_scale([1.0, 0.8, 0.5])
+    egg.export(folder / "ellipsoid.stl")
+    lib = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    rng = np.random.default_rng(21)
+    torus = trimesh.creation.torus(0.8, 0.3, major_sections=96, minor_sections=48)
+    T_world = world_pose(rng)
+    touches, _ = touches_at(torus, T_world, rng, n=2)
+    plane = trimesh.creation.box(extents=[3.0, 3.0, 0.2])
+    for _ in range(3):
+        plane = plane.subdivide()
+    table = meshrec.simulate_touch(
+        plane, contact=[0.2, 0.1, 0.1], length=0.3, noise=0.002, rng=rng, transform=False
+    ).touch.transformed(T_world)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = meshrec.recognize([*touches, table], lib)
+    assert rec.verdict == "unknown"
+    assert "touch 3 fits box" in rec.reason
+    assert "touch 3 is flat, and a flat touch fits any flat patch" in rec.reason
+    assert "recognise each touch alone" in rec.reason

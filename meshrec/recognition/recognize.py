@@ -26,7 +26,7 @@ from meshrec.model.probe import probe_model
 from meshrec.model.resolution import ResolutionWarning, coarse_message
 from meshrec.recognition.best_pose import with_pose_freedom
 from meshrec.recognition.edges import warn_sharp_edges
-from meshrec.recognition.flatness import flat_prior
+from meshrec.recognition.flatness import flat_prior, flat_tolerance
 from meshrec.recognition.holds import (
     across_an_edge,
     every_touch_hold,
@@ -676,10 +676,29 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
         if best is not None and best.rms is not None
         else ""
     )
+    # A flat touch fits any flat patch (a table, a fixture): that it fits alone says
+    # little, and the touches that fit nothing may be the object's (a probe, stop 34: the
+    # gelatin box's top and side, then the table; touches 1 and 2 alone are `ambiguous`
+    # with the gelatin box best once their search is widened, but were blamed).
+    flat = [
+        k + 1
+        for k, names in enumerate(fitting)
+        if names and flat_tolerance(rec.geometries[k]) is not None
+    ]
+    caveat = ""
+    if flat:
+        listed_flat = " and ".join(map(str, flat))
+        caveat = (
+            f"; touch {listed_flat} {'is' if len(flat) == 1 else 'are'} flat, and a flat "
+            "touch fits any flat patch (a table or a fixture as well)"
+        )
+    them = "that touch" if len(misfits) == 1 else "those"
     return (
-        f"{lead}alone, {fit_part} to the noise, but {which} no model alone: the object may "
-        f"have moved between the touches, or {'that touch' if len(misfits) == 1 else 'those'} "
-        f"may be of another object{edge}; or the object is not in the library"
+        f"{lead}alone, {fit_part} to the noise, but {which} no model alone (in the first "
+        f"pass, without the widened search one touch gets){caveat}: the object may have "
+        f"moved between the touches, or {them} may be of another object{edge}, or the "
+        "touches that fit may be; recognise each touch alone to see which; or the object is "
+        "not in the library"
     )
 
 
