@@ -160,6 +160,28 @@ def test_recognised_pins_down_the_pose(world):
     assert np.linalg.norm(advice.point - world["rec"].geometry.point) >= 0.15
 
 
+def test_an_unknown_answer_calls_no_model_plausible(world):
+    # A black-box probe (stop 34): advice after an `unknown` answer spoke of "the 2
+    # plausible poses of" a model just said not to fit. Separating: the best-fitting
+    # models, with the verdict first; pinning a pose down: the same.
+    eye = np.eye(4)
+    separate = _recognition(
+        world, "unknown", _score("sphere", 0.5, (eye, 1.0)), _score("bumped", 0.5, (eye, 1.0))
+    )
+    advice = next_touch(separate, world["library"], rng=0)
+    assert advice.criterion == "separate"
+    assert advice.reason.startswith("no model fits well (unknown)")
+    assert "best-fitting models sphere and bumped" in advice.reason
+    assert "plausible" not in advice.reason
+    turn = np.eye(4)
+    turn[:3, :3] = trimesh.transformations.rotation_matrix(1.0, [0, 0, 1])[:3, :3]
+    alone = _recognition(world, "unknown", _score("sphere", 1.0, (eye, 0.5), (turn, 0.5)))
+    advice = next_touch(alone, world["library"], rng=0)
+    assert advice.criterion == "pose"
+    assert "unknown" in advice.reason
+    assert "plausible" not in advice.reason
+
+
 def test_symmetric_poses_are_one_hypothesis(world):
     """A sphere's poses rotated about its centre put it in the same place: no separation."""
     turn = np.eye(4)

@@ -242,9 +242,12 @@ def next_touch(
                 time.perf_counter() - t0,
             )
         note = (
-            f"the {_pose_words(hyps)} cannot be told apart at any reachable point "
-            f"(best gain {gain[k]:.2g} nats)"
+            f"the {_pose_words(hyps, recognition.verdict)} cannot be told apart at any "
+            f"reachable point (best gain {gain[k]:.2g} nats)"
         )
+        if recognition.verdict == "unknown":
+            # a probe (stop 34) read "the 2 plausible poses of ..." beside `unknown`
+            note = f"no model fits the touches to the noise (unknown); {note}"
     best = max((h for h in hyps if h.name == top), key=lambda h: h.weight)
     best = dataclasses.replace(best, weight=1.0)
     cand = _candidates([best], n_candidates, gen, space)
@@ -606,19 +609,21 @@ def _separate_reason(hyps, cand: _Candidates, k: int, D: np.ndarray, verdict: st
     where = f"touch at {point_text(cand.world[k])} approaching along {point_text(cand.approach[k])}"
     lead = "no model fits well (unknown), but " if verdict == "unknown" else ""
     return (
-        f"{lead}{where}: the {_pose_words(hyps)} lie up to "
+        f"{lead}{where}: the {_pose_words(hyps, verdict)} lie up to "
         f"{math.sqrt(float(D.max())):.3g} apart there (RMS over the next touch's patch, "
         "model units)"
     )
 
 
-def _pose_words(hyps) -> str:
-    """'plausible models a and b', or 'N plausible poses of a'."""
+def _pose_words(hyps, verdict: str = "ambiguous") -> str:
+    """'plausible models a and b', or 'N plausible poses of a' ('best-fitting' for an
+    ``unknown`` answer, where no model is plausible)."""
+    kind = "best-fitting" if verdict == "unknown" else "plausible"
     names = list(dict.fromkeys(h.name for h in hyps))
     if len(names) == 1:
-        return f"{len(hyps)} plausible poses of {names[0]}"
+        return f"{len(hyps)} {kind} poses of {names[0]}"
     listed = ", ".join(names[:-1]) + f" and {names[-1]}"
-    return f"plausible models {listed}"
+    return f"{kind} models {listed}"
 
 
 # ---------------------------------------------------------------------- pose
