@@ -238,6 +238,8 @@ def test_a_tip_not_declared_is_caught_and_no_tip_is_not(models):
     text = str(caught[0].message)
     assert "outside the surface of 'tube'" in text
     assert "--probe-radius" in text
+    # a part a little larger than its model looks the same locally (a probe, stop 34)
+    assert "a scale or unit error" in text
     rec, _ = _recognise(tipped.touch, library)
     assert any("a ball tip?" in w for w in rec.warnings)
     # the radius it names is the tip's, to the noise

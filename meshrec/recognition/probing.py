@@ -328,7 +328,9 @@ def warn_probe_offset(rec, models) -> ProbeOffset | None:
         f"surface itself, beyond the noise {rec.noise:.3g}): a ball tip? use "
         f"--probe-radius (probe_radius=) with the tip's radius, which this fit puts at about "
         f"{_round(radius)} (less than a tip wider than the surface's curvature radii: the "
-        "fit at the plain surface's pose flattens such an offset)",
+        "fit at the plain surface's pose flattens such an offset); or the part is a little "
+        "larger than its model (a scale or unit error: on a curved patch a 1% larger part "
+        "looks like a tip of 1% of its radius of curvature)",
         ProbeOffsetWarning,
         stacklevel=4,
     )

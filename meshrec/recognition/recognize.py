@@ -621,8 +621,9 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
             return (
                 f"{lead}each touch alone fits {reg.model} to the noise, but no one rigid pose "
                 f"fits them all (its joint RMS residual {reg.rms:.3g}, {reg.rms / noise:.3g} "
-                f"times the noise {noise:.3g}): the object moved between touches, or it is not "
-                "in the library"
+                f"times the noise {noise:.3g}): the object moved between touches, the "
+                "touches' frames disagree (a hand-eye calibration or kinematic error that "
+                "differs between the arm's poses), or it is not in the library"
             )
     # Each touch alone fits some model, but not the same one: touches of different objects.
     fitting = []
