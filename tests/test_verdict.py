@@ -88,15 +88,16 @@ def test_a_shape_outside_the_library_is_unknown(surfaces, small_sphere_touch):
     assert rec.verdict == "unknown"
     assert rec.plausible == ()
     assert "not in the library" in rec.reason
-    # it looked harder (a widened lookup, then more candidates) before concluding
+    # it looked harder (a widened lookup) before concluding
     assert rec.widened_seconds > 0
     assert rec.phase_times.widened > 0
-    assert rec.phase_times.dense > 0
     assert rec.phase_times.best_first == 0.0  # one touch: no joint phase
     assert any("widened" in w for w in rec.warnings)
-    assert any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
     # no paper surface has a site this curved even in the widened window, so the dense
-    # pass skips them all: a denser look at the same window rejects them too
+    # pass skips them all, and the caution does not claim it (a probe, stop 34, read the
+    # claim on an answer given in 26 ms): a denser look at the same window rejects them
+    assert rec.phase_times.dense == 0.0
+    assert not any(f"{defaults.LOOKUP_DENSE_CANDIDATES} candidates" in w for w in rec.warnings)
     assert all(r.rejected for r in rec.ranking)
     for m in surfaces:
         dense = meshrec.register(
