@@ -183,10 +183,7 @@ def _search_adequately(
     searched = set()
     gap = defaults.PAIR_SEARCH_GAP
     while True:
-        names = list(fits)
-        ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
-        leader = float(np.max(ll))
-        ll_of = dict(zip(names, ll, strict=True))
+        leader, ll_of = _log_likelihoods_of(fits, n, noise)
         todo = [
             m
             for m in models
@@ -268,10 +265,7 @@ def _explore_near_symmetries(touches, models, geometries, fits: dict, noise: flo
     object the joint search can end at a precise-looking pose a large turn away from the
     right one. ``fits`` is updated in place.
     """
-    names = list(fits)
-    ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
-    leader = float(np.max(ll))
-    ll_of = dict(zip(names, ll, strict=True))
+    leader, ll_of = _log_likelihoods_of(fits, n, noise)
     near = [
         m
         for m in models
@@ -495,3 +489,10 @@ def curvature_turn(geometry: LocalGeometry) -> float:
     float
     """
     return max(abs(float(geometry.k1)), abs(float(geometry.k2))) * float(geometry.half_length)
+
+
+def _log_likelihoods_of(fits: dict, n: int, noise: float) -> tuple[float, dict]:
+    """The best log-likelihood of the joint fits and each model's, by name."""
+    names = list(fits)
+    ll = log_likelihoods([fits[k].registration.rms for k in names], n, noise)
+    return float(np.max(ll)), dict(zip(names, ll, strict=True))

@@ -484,6 +484,22 @@ def register_full(
     return _registration(model, stages, trace, seconds, clock)
 
 
+def _rejected(reason: str, common: dict, candidates=0, raw_hits=0, searches=0):
+    """A rejected Registration (no pose on this model) and why."""
+    return Registration(
+        error=None,
+        contact=None,
+        normal=None,
+        phi=None,
+        T_model_touch=None,
+        candidates=candidates,
+        raw_hits=raw_hits,
+        searches=searches,
+        reason=reason,
+        **common,
+    )
+
+
 def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float, clock):
     """The Registration the stages' outputs make (the best distinct pose reported)."""
     cands = stages.candidates
@@ -496,38 +512,21 @@ def _registration(model, stages: RegistrationTrace, trace: bool, seconds: float,
     )
     if len(cands) == 0:
         g = cands.geometry
-        return Registration(
-            error=None,
-            contact=None,
-            normal=None,
-            phi=None,
-            T_model_touch=None,
-            candidates=0,
-            raw_hits=0,
-            searches=0,
-            reason=(
-                f"no surface site with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance"
-            ),
-            **common,
+        return _rejected(
+            f"no surface site with K={g.K:.4g}, |H|={abs(g.H):.4g} within the lookup tolerance",
+            common,
         )
     poses = distinct_poses(stages.hypotheses, float(cands.geometry.half_length))
     if not poses:
         # every refined pose carried the data through the surface, against the side
         # given (meshrec.registration.poses.pose_hypotheses): no placement on this model
-        return Registration(
-            error=None,
-            contact=None,
-            normal=None,
-            phi=None,
-            T_model_touch=None,
+        return _rejected(
+            "every pose found put the touch through the surface, against its given normal "
+            "(the data fit the far side of a thin wall better)",
+            common,
             candidates=len(cands),
             raw_hits=cands.raw_hits,
             searches=len(stages.searches.runs),
-            reason=(
-                "every pose found put the touch through the surface, against its given "
-                "normal (the data fit the far side of a thin wall better)"
-            ),
-            **common,
         )
     best = poses[0]
     return Registration(
