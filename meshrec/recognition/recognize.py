@@ -621,9 +621,10 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
             return (
                 f"{lead}each touch alone fits {reg.model} to the noise, but no one rigid pose "
                 f"fits them all (its joint RMS residual {reg.rms:.3g}, {reg.rms / noise:.3g} "
-                f"times the noise {noise:.3g}): the object moved between touches, the "
-                "touches' frames disagree (a hand-eye calibration or kinematic error that "
-                "differs between the arm's poses), or it is not in the library"
+                f"times the noise {noise:.3g}): the object is not in the library (a part "
+                f"like {reg.model}, not it), or it moved between touches, or the touches' "
+                "frames disagree (a hand-eye calibration or kinematic error that differs "
+                "between the arm's poses)"
             )
     # Each touch alone fits some model, but not the same one: touches of different objects.
     fitting = []
@@ -696,10 +697,10 @@ def _joint_unknown_reason(rec: Recognition, fits: dict, models: dict, noise: flo
     them = "that touch" if len(misfits) == 1 else "those"
     return (
         f"{lead}alone, {fit_part} to the noise, but {which} no model alone (in the first "
-        f"pass, without the widened search one touch gets){caveat}: the object may have "
-        f"moved between the touches, or {them} may be of another object{edge}, or the "
-        "touches that fit may be; recognise each touch alone to see which; or the object is "
-        "not in the library"
+        f"pass, without the widened search one touch gets){caveat}: the object may not be "
+        f"in the library, or it moved between the touches, or {them} may be of another "
+        f"object{edge}, or the touches that fit may be; recognise each touch alone to see "
+        "which"
     )
 
 
