@@ -417,3 +417,20 @@ def test_index_checks_a_read_only_cache_instead_of_refusing_it(tmp_path, capsys,
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "not writable, and 1 of 1 models are not in it (ball)" in captured.err
+
+
+def test_an_ambiguous_answers_pose_line_names_whose_pose_it_is(tmp_path, capsys):
+    # Two copies of one ellipsoid: `ambiguous` between them, the pose line that of the
+    # best one only (a probe, stop 34, read "pose: fixed" as the answer's)
+    (tmp_path / "m").mkdir()
+    egg = trimesh.creation.icosphere(subdivisions=4)
+    egg.apply_scale([1.0, 0.8, 0.5])
+    for name in ("a", "b"):
+        egg.export(tmp_path / "m" / f"{name}.stl")
+    meshrec.simulate_touch(egg, rng=5).touch.to_file(tmp_path / "t.csv")
+    args = ["recognize", str(tmp_path / "t.csv"), "--models", str(tmp_path / "m")]
+    assert main([*args, "--cache-dir", str(tmp_path / "c")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1].startswith("ambiguous: ")
+    assert any(ln.startswith("pose of a, if it is that model: ") for ln in lines)
+    assert not any(ln.startswith("pose: ") for ln in lines)

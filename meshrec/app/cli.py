@@ -302,7 +302,14 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
         sigma = rec.pose_freedom.sigma
         known = f" (data points within about {sigma:.2g}, one sigma)" if np.isfinite(sigma) else ""
         # an unknown answer's best fit misses the data: its precision says nothing
-        whose = "pose of the best fit (it misses the data)" if rec.verdict == "unknown" else "pose"
+        if rec.verdict == "unknown":
+            whose = "pose of the best fit (it misses the data)"
+        elif len(rec.plausible) > 1 and rec.best is not None:
+            # an ambiguous answer's pose is its best model's, one of the plausible ones (a
+            # probe, stop 34, read "pose: fixed" beside two plausible models as the answer's)
+            whose = f"pose of {rec.best.model}, if it is that model"
+        else:
+            whose = "pose"
         out.write(f"{whose}: {rec.pose_freedom.description}{known}\n")
     if rec.verdict == "recognised":
         what = rec.plausible[0]
