@@ -99,6 +99,12 @@ CANDIDATE_NOISE_FACTOR = 12.0
 #: one side of p read K -0.68 on a convex ellipsoid (an error 5 times that tolerance) and
 #: the lookup left the ellipsoid out, naming the elliptic paraboloid at p 1.000.
 CANDIDATE_SD_FACTOR = 1.0
+#: A refined pose of a touch whose side is known (its normal given, on a closed model) is
+#: dropped where the touch's normal, placed, meets the surface's normal at the contact at
+#: a cosine below this: the data were carried through a thin wall (about -1 there). Not
+#: 0: across a sharp edge the contact's closest point can lie on a face whose normal is
+#: up to 90 degrees from the curves' (a knife edge), and noise tips it over.
+POSE_SIDE_MIN_COS = -0.5
 #: Candidates closer than this fraction of the curves' half-length are merged (one basin).
 #: On the analytic surfaces 0.5 and 24 candidates lost no basin, but on scanned meshes
 #: (YCB mustard bottle, banana, power drill; 12 seeded touches each, noise 1e-4 m) the

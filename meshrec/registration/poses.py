@@ -215,7 +215,8 @@ def pose_hypotheses(
         known (``candidates.sides`` holds one: a normal given with the touch on a closed
         model, or the one side a ball tip can trace), a refinement that carried the data
         through the surface (a thin wall: the touch's normal, placed, then points into
-        the material) is no placement of the touch. Empty when every one did.
+        the material, more than ``defaults.POSE_SIDE_MIN_COS`` against the surface's)
+        is no placement of the touch. Empty when every one did.
 
     Raises
     ------
@@ -236,7 +237,8 @@ def pose_hypotheses(
         guess = apply_transform(T, candidates.geometry.point[None, :])
         _, closest, face = model.surface.closest_points(guess)
         normal = model.surface.interpolated_normals(closest, face)[0]
-        if known_side and float(normal @ (T[:3, :3] @ side.frame[:, 2])) < 0.0:
+        placed_n = T[:3, :3] @ side.frame[:, 2]
+        if known_side and float(normal @ placed_n) < defaults.POSE_SIDE_MIN_COS:
             # Through the surface: a probe (stop 34) touched a 1 mm-walled tube's inside,
             # normal given, and the refinement carried the data from the inner wall to
             # the outer one, where the tube was then scored (and a ball tip suggested).
