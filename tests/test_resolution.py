@@ -223,3 +223,24 @@ def test_recognition_warns_when_the_plausible_model_is_coarse(tmp_path):
     texts = [t for t in rec.warnings if "too coarse for reliable answers" in t]
     assert texts == [coarse_message("ball", model.resolution)]
     assert any(issubclass(w.category, ResolutionWarning) for w in caught)
+
+
+def test_several_coarse_plausible_models_give_one_warning(tmp_path):
+    # two copies of a coarse ball: both plausible, one warning naming both (a probe,
+    # stop 34, got a line per plausible bracket, ten on one flat touch)
+    coarse = trimesh.creation.icosphere(3, radius=10.0)
+    models = []
+    for name in ("ball", "ball_copy"):
+        coarse.export(tmp_path / f"{name}.stl")
+        models.append(ModelIndex.from_file(tmp_path / f"{name}.stl", cache_dir=tmp_path / "c"))
+    sim = simulate_touch(coarse, rng=3, noise=1e-3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rec = recognize(sim.touch, models)
+    assert set(rec.plausible) == {"ball", "ball_copy"}
+    texts = [t for t in rec.warnings if "too coarse for reliable answers" in t]
+    assert len(texts) == 1
+    first, other = rec.plausible
+    assert texts[0].startswith(coarse_message(first, models[0].resolution).split(":")[0])
+    assert f"also too coarse: {other}" in texts[0]
+    assert sum(issubclass(w.category, ResolutionWarning) for w in caught) == 1

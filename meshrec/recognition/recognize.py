@@ -250,16 +250,26 @@ def _runner(models: list, workers, scheduler, cache_dir=None) -> tuple[ModelWork
 
 
 def _warn_coarse(rec: Recognition, models: list) -> None:
-    """A ResolutionWarning per model too coarse for reliable answers among the plausible
-    ones and the best (see :mod:`meshrec.model.resolution`)."""
+    """One ResolutionWarning when models too coarse for reliable answers are among the
+    plausible ones and the best (see :mod:`meshrec.model.resolution`): the model's own
+    message, or for several their names and the first one's reasons (a probe, stop 34,
+    got ten such lines on one flat touch of a library of brackets)."""
     names = list(rec.plausible)
     if rec.best is not None:
         names.append(rec.best.model)
     by_name = {m.name: m for m in models}
-    for name in dict.fromkeys(names):
-        res = by_name[name].resolution
-        if res.too_coarse:
-            warnings.warn(coarse_message(name, res), ResolutionWarning, stacklevel=3)
+    coarse = [
+        (name, by_name[name].resolution)
+        for name in dict.fromkeys(names)
+        if by_name[name].resolution.too_coarse
+    ]
+    if not coarse:
+        return
+    text = coarse_message(*coarse[0])
+    if len(coarse) > 1:
+        listed = ", ".join(name for name, _ in coarse[1:])
+        text = f"{text} (also too coarse: {listed}; `meshrec models DIR` gives each one's reasons)"
+    warnings.warn(text, ResolutionWarning, stacklevel=3)
 
 
 def _touches(touch) -> tuple[TouchData, ...]:
