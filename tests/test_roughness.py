@@ -95,4 +95,4 @@ def test_look_alike_raw_scans_are_not_named_on_their_meshes_scatter(tmp_path):
         scatter = max(library[m].vertex_scatter for m in library.names)
         assert rec.noise > 1.5 * 0.00115
         assert rec.noise <= np.hypot(0.0013, scatter / np.sqrt(2.0))
-        assert any("vertex roughness" in w for w in rec.warnings)
+        assert any("a raw scan's roughness" in w for w in rec.warnings)

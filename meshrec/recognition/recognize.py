@@ -459,7 +459,8 @@ def _with_verdict(
         if mesh_error > defaults.MODEL_ERROR_NOTE * own:
             cautions.append(
                 f"the meshes of the models that fit best scatter about their surfaces by up "
-                f"to {mesh_error * np.sqrt(2.0):.3g} (vertex roughness, as a raw scan's): "
+                f"to {mesh_error * np.sqrt(2.0):.3g} (a raw scan's roughness, or detail a "
+                "coarse mesh does not follow): "
                 f"their error, {mesh_error:.3g} on the surface, is added to the touch's noise "
                 f"{own:.3g} (the scores take {noise:.3g}), and the answer can tell models "
                 "apart only above it"
