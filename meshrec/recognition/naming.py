@@ -44,7 +44,7 @@ from meshrec.recognition.passes import (
     search_lone_leader,
 )
 from meshrec.recognition.phases import timed
-from meshrec.recognition.rescore import rescored, would_recognise
+from meshrec.recognition.rescore import noise_and_points, rescored, would_recognise
 from meshrec.recognition.result import Recognition
 from meshrec.recognition.scoring import fit_p_value
 from meshrec.recognition.weak import weak_motion_starts
@@ -137,7 +137,7 @@ def before_naming(
 def _before_naming_several(rec, prior, fits, models, run, noise, memo) -> NamingPasses:
     """Several touches: the lone leader's pairs, then its poses on the other models."""
     by_name = {m.name: m for m in models}
-    n = sum(int(t.n_points) for t in rec.touches)
+    n = noise_and_points(rec)[1]
     done = []
     if would_recognise(rec, prior, n, noise):
         # Every pose its touches allow, before its pose is given. Not where the data leave
@@ -169,7 +169,7 @@ def _before_naming_one(
     """One touch: the marginal and out-of-range looks, the confirmation, the weak motions
     and the transfer."""
     by_name = {m.name: m for m in models}
-    n = int(rec.touch.n_points)
+    n = noise_and_points(rec)[1]
     done, cautions = [], []
     t_wide = 0.0
     if not looked and would_be_named(rec, prior, n, noise):

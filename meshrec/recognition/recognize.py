@@ -213,7 +213,9 @@ def recognize(
                 with timed("cautions"):
                     _warn_coarse(rec, models)
                     crossed = warn_sharp_edges(rec, seen)
-                    rec = _edge_caveat(across_an_edge(rec, crossed), crossed)
+                    held = across_an_edge(rec, crossed)
+                    # held back across the edge (its reason says why), or a caveat
+                    rec = held if held is not rec else _edge_caveat(rec, crossed)
                 if radius == 0.0:
                     with timed("probe_offset"):
                         rec = dataclasses.replace(rec, probe_offset=warn_probe_offset(rec, models))
@@ -472,10 +474,7 @@ def _with_verdict(
         reason = v.reason
         rough = False
         for k, g in enumerate(rec.geometries):
-            if (
-                g.fit_to_noise > defaults.ROUGH_FIT_RATIO
-                and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
-            ):
+            if _rough(g):
                 rough = True
                 which = (
                     f"touch {k + 1}'s curve fits" if len(rec.geometries) > 1 else "the curve fits"
@@ -533,6 +532,16 @@ def _with_verdict(
     )
 
 
+def _rough(g: LocalGeometry) -> bool:
+    """Whether a touch's curve fits leave far more than its noise (``defaults.
+    ROUGH_FIT_RATIO``, and a residual not negligible against the curves): across an
+    edge or a rim."""
+    return (
+        g.fit_to_noise > defaults.ROUGH_FIT_RATIO
+        and g.fit_rms > defaults.ROUGH_FIT_MIN_FRACTION * g.half_length
+    )
+
+
 def _edge_caveat(rec: Recognition, crossed: int) -> Recognition:
     """One touch across a sharp edge of the best model that names none (``ambiguous`` or
     ``unknown``): the reason says that there a model's search can miss its pose, so the
@@ -542,15 +551,15 @@ def _edge_caveat(rec: Recognition, crossed: int) -> Recognition:
     answers were `ambiguous` among other parts, the touched one left out although its
     true pose fitted as well or better; a washer's top, the curves wrapping both its
     edges, was `unknown`. (A touch ``recognised`` across an edge is held back by
-    :func:`~meshrec.recognition.holds.across_an_edge`, whose reason says so already.)
+    :func:`~meshrec.recognition.holds.across_an_edge` instead, whose reason says so; an
+    ``unknown`` one whose curves fit no smooth patch already doubts its pose.)
     """
     if (
         len(rec.touches) != 1
         or crossed < 2
         or rec.best is None
         or rec.verdict == "recognised"
-        or "crosses a sharp edge" in rec.reason
-        or "its pose was missed" in rec.reason
+        or (rec.verdict == "unknown" and _rough(rec.geometries[0]))
     ):
         return rec
     where = (

@@ -355,8 +355,7 @@ class CoarseRegistration(ValueEquality):
 
     @property
     def rejected(self) -> bool:
-        """True when the table lookup found no candidate on this model (or every pose
-        found put the touch through the surface, against its given normal: ``reason``)."""
+        """True when the table lookup found no candidate on this model."""
         return self.screening is None
 
     @property
