@@ -612,6 +612,27 @@ WEAK_MOTION_MOST = 2
 WEAK_TURN_ANGLES_DEG = (-120.0, -60.0, 60.0, 120.0, 180.0)
 #: Slides tried along a weak slide, in multiples of the points' RMS spread, either way.
 WEAK_SLIDE_STEPS = (1.0, 2.0, 4.0)
+#: Each weak motion is also scanned densely (meshrec.recognition.weak.weak_motion_scan):
+#: a whole turn about a weak turn's axis, or the model's extent along a weak slide, in
+#: steps that move the farthest data point by this fraction of the points' RMS spread; each
+#: step scored by the points' mean squared distance to the surface. Fixed angles missed
+#: the better basin on a scanned can: a touch of the YCB master chef can (seed 503) was
+#: `recognised` with its pose `fixed` 133 degrees about the can's axis from the truth, the
+#: true pose fitting 2.4 times better; its basins along the turn are a few degrees wide.
+WEAK_SCAN_STEP = 0.25
+#: ... at most this many steps per motion (the step grows beyond) ...
+WEAK_SCAN_MOST = 180
+#: ... on at most this many of the points, evenly spread ...
+WEAK_SCAN_POINTS = 48
+#: ... and the deepest this-many local minima of each scan (other than the best pose's own
+#: basin) are refined.
+WEAK_SCAN_KEEP = 3
+#: A half-turn about a principal axis of a model's surface is a near-symmetry
+#: (meshrec.model.symmetry) when it moves the model's vertices within this fraction of its
+#: diagonal of the surface (RMS). The YCB scans (in metres) read 0.003 to 0.004 for the
+#: master chef can's upside-down turns, 0.007 to 0.008 for the cracker box's, 0.0013 for
+#: the mustard bottle's about its long axis; 0.04 to 0.09 for the power drill's.
+NEAR_SYMMETRY_FRACTION = 0.02
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
 POSE_TURN_FRACTION = 0.1
@@ -651,6 +672,14 @@ POSE_SYMMETRY_PROBE_STRIDE = 16
 #: that remain 3.5 to 430 sigma away (a superellipsoid's, a bumped sphere's second basin,
 #: a monkey saddle's third of a turn).
 POSE_ALTERNATIVE_SIGMAS = 3.0
+#: ... or when the motion from one to the other moves the whole model within this many
+#: times that precision of itself (no touch could tell them apart: the bundled crossed
+#: trough's quarter-turns, symmetries of the surface that its grid mesh follows to 0.007,
+#: 0.1 sigma). A near-symmetry that moves the model by about its precision, such as a
+#: decimated scan of a can turned upside down (3 to 6 mm at a sigma of 3 mm), moves the
+#: touch by centimetres: those poses are two answers. (Stop 34 took 3 sigma here, and gave
+#: such a pose as `fixed`.)
+POSE_SYMMETRY_SIGMAS = 0.5
 
 # --- several touches of one object (meshrec.recognition.joint) ------------------------------
 #: Pose hypotheses per model refined jointly on every touch's points, the ones with the

@@ -32,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from meshrec import defaults
 from meshrec.io.checks import check_instance
 from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model_folder
@@ -41,6 +43,7 @@ from meshrec.model.record import RECORD_VERSION, IndexRecord
 from meshrec.model.resolution import Resolution, mesh_resolution
 from meshrec.model.roughness import vertex_scatter
 from meshrec.model.surface import AabbSurface, SurfaceQuery, edge_bulges
+from meshrec.model.symmetry import NearSymmetries, near_symmetries
 
 __all__ = ["IndexParams", "ModelIndex"]
 
@@ -162,6 +165,11 @@ class ModelIndex:
     vertex_scatter : float
         How far the vertices scatter along their normals about a smooth surface (the
         mesh's own error, :mod:`meshrec.model.roughness`), computed on first use.
+    symmetry_tolerance : float
+        How far a symmetry of the model may move its vertices off its surface.
+    near_symmetries : NearSymmetries
+        Half-turns, and axes of turns, that carry the model near itself
+        (:mod:`meshrec.model.symmetry`), computed on first use.
 
     Raises
     ------
@@ -218,6 +226,23 @@ class ModelIndex:
         model units (:func:`meshrec.model.roughness.vertex_scatter`; about 0 for an exact
         mesh, the scanner's noise for a raw scan), computed on first use."""
         return vertex_scatter(self.mesh, self.curvature.face_patch)
+
+    @functools.cached_property
+    def symmetry_tolerance(self) -> float:
+        """How far a motion may move the model's vertices off its surface and still be a
+        symmetry of it, model units: ``defaults.POSE_SYMMETRY_TOLERANCE`` of the diagonal
+        or twice the mesh's chord error (:attr:`resolution`), whichever is larger."""
+        diagonal = float(np.linalg.norm(np.ptp(self.mesh.vertices, axis=0)))
+        return max(
+            defaults.POSE_SYMMETRY_TOLERANCE * diagonal,
+            2.0 * float(self.resolution.chord_error),
+        )
+
+    @functools.cached_property
+    def near_symmetries(self) -> NearSymmetries:
+        """The turns that carry the model near itself but are not symmetries of it
+        (:func:`meshrec.model.symmetry.near_symmetries`), computed on first use."""
+        return near_symmetries(self.mesh, self.surface, self.symmetry_tolerance)
 
     # ------------------------------------------------------------------ construction
     @classmethod

@@ -54,10 +54,13 @@ def with_pose_freedom(rec: Recognition, models: list, memo: dict | None = None) 
     score = next((s for s in rec.scores if s.model == best.model), None)
     if score is not None and score.poses and freedom.unresolved == 0:
         # Distinct poses (a free motion already leaves the pose open). Two poses that move
-        # the object by less than a few times the pose's own precision are one.
+        # the data by less than a few times the pose's own precision are one, as are two
+        # related by a symmetry of the model, or by a motion that moves the whole model by
+        # less than half that precision (no touch could tell them apart).
         vertices, distance, tolerance = _symmetry_test(model)
         weights = np.array([p.weight for p in score.poses])
         within = defaults.POSE_ALTERNATIVE_SIGMAS * sigma if np.isfinite(sigma) else 0.0
+        symmetric = defaults.POSE_SYMMETRY_SIGMAS * sigma if np.isfinite(sigma) else 0.0
         # (the tolerance, whose chord error costs a pass over the mesh, only when a pose
         # is compared: not when the reported one alone reaches the coverage)
         needed = weights[0] < defaults.VERDICT_COVERAGE
@@ -67,7 +70,9 @@ def with_pose_freedom(rec: Recognition, models: list, memo: dict | None = None) 
             weights,
             vertices,
             distance,
-            max(tolerance(), within) if needed else float("inf"),
+            max(tolerance(), symmetric) if needed else float("inf"),
+            points=np.vstack([t.points for t in (rec.touches or (rec.touch,))]),
+            within=within,
         )
     rec = dataclasses.replace(rec, pose_freedom=freedom)
     if freedom.fixed:
@@ -154,15 +159,11 @@ def _symmetry_test(model):
     asked), with which a motion is tested for a symmetry of the model."""
     V = model.mesh.vertices
     step = max(1, len(V) // defaults.POSE_SYMMETRY_VERTICES)
-    diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
-
-    def tolerance() -> float:
-        return max(
-            defaults.POSE_SYMMETRY_TOLERANCE * diagonal,
-            2.0 * float(model.resolution.chord_error),
-        )
-
-    return V[::step], lambda p: model.surface.closest_points(p)[0], tolerance
+    return (
+        V[::step],
+        lambda p: model.surface.closest_points(p)[0],
+        lambda: model.symmetry_tolerance,
+    )
 
 
 def _pose_normals(

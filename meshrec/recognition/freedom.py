@@ -384,13 +384,20 @@ def with_alternatives(
     distance,
     tolerance: float,
     coverage: float = defaults.VERDICT_COVERAGE,
+    *,
+    points: np.ndarray | None = None,
+    within: float = 0.0,
 ) -> PoseFreedom:
     """``freedom`` with the distinct poses that the data cannot rule out counted.
 
     Two poses ``T_a`` and ``T_b`` (both ``T_model_touch``) put the object at the same place
     in the touch frame when ``T_a T_b^-1`` is a symmetry of the model: the model's
     vertices, moved by it, all stay within ``tolerance`` of its surface (the test of
-    :func:`with_symmetries`). The poses are grouped by that test, in the order given, each
+    :func:`with_symmetries`); or when they place the data ``points`` within ``within`` of
+    each other (a second basin inside the pose's own uncertainty). A near-symmetry of the
+    model, such as a scanned can turned upside down, moves the model less than the data's
+    precision but the touch by centimetres: two such poses are distinct answers, not one.
+    The poses are grouped by that test, in the order given, each
     into the first group whose first pose it equals; the reported pose (the first) leads
     the first group. ``pose_weight`` is that group's weight, and ``alternatives`` the
     number of other groups needed, heaviest first, for the weights to reach ``coverage``:
@@ -418,6 +425,10 @@ def with_alternatives(
         The largest distance a symmetry may leave, model units.
     coverage : float
         In (0, 1].
+    points : (n, 3) float or None
+        The data points, touch frame (None: only the symmetry test).
+    within : float
+        How far two poses may place each of ``points`` apart and be one pose; at least 0.
 
     Returns
     -------
@@ -428,7 +439,8 @@ def with_alternatives(
     ValueError
         If ``poses`` is not (k, 4, 4) finite with k >= 1, ``weights`` not (k,) finite and
         non-negative, ``vertices`` not (V, 3) finite with V >= 1, ``tolerance`` not
-        positive or ``coverage`` not in (0, 1].
+        positive, ``coverage`` not in (0, 1], ``points`` not (n, 3) finite or ``within``
+        negative or not finite.
     """
     T = np.asarray(poses, dtype=np.float64)
     if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0 or not np.isfinite(T).all():
@@ -443,6 +455,9 @@ def with_alternatives(
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (isinstance(coverage, (int, float)) and 0.0 < float(coverage) <= 1.0):
         raise ValueError(f"coverage must be a number in (0, 1], got {coverage!r}")
+    x = None if points is None else check_points(points, "points", min_rows=1)
+    if not (isinstance(within, (int, float)) and np.isfinite(within) and within >= 0.0):
+        raise ValueError(f"within must be a finite number >= 0, got {within!r}")
     if w[0] >= coverage:
         return replace(freedom, alternatives=0, pose_weight=float(w[0]))
     leaders: list[int] = [0]
@@ -453,7 +468,9 @@ def with_alternatives(
         for g, j in enumerate(leaders):
             # T_j T_i^-1 maps the model onto itself when the two poses agree.
             D = T[j] @ np.linalg.inv(T[i])
-            if _stays(distance, v @ D[:3, :3].T + D[:3, 3], float(tolerance)):
+            if (x is not None and _apart(T[i], T[j], x) <= within) or _stays(
+                distance, v @ D[:3, :3].T + D[:3, 3], float(tolerance)
+            ):
                 group_weight[g] += float(w[i])
                 break
         else:
@@ -467,6 +484,12 @@ def with_alternatives(
         total += gw
         alternatives += 1
     return replace(freedom, alternatives=alternatives, pose_weight=group_weight[0])
+
+
+def _apart(T_a: np.ndarray, T_b: np.ndarray, x: np.ndarray) -> float:
+    """How far apart the two poses place the points ``x`` at most."""
+    D = T_a - T_b
+    return float(np.max(np.linalg.norm(x @ D[:3, :3].T + D[:3, 3], axis=1)))
 
 
 def _stays(distance, moved: np.ndarray, tolerance: float) -> bool:

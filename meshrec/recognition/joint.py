@@ -36,7 +36,7 @@ from meshrec.recognition.scoring import (
     log_likelihoods,
     noise_estimate,
 )
-from meshrec.recognition.weak import weak_motion_starts
+from meshrec.recognition.weak import exploration_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.phi import bracket_minima
@@ -616,7 +616,7 @@ def explore_weak_motions(
         return previous
     t0 = time.perf_counter()
     points = np.vstack([t.points for t in touches])
-    starts = weak_motion_starts(model, points, reg.T_model_touch)
+    starts = exploration_starts(model, points, reg.T_model_touch)
     if not starts:
         return previous
     found = joint_poses(

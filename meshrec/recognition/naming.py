@@ -47,7 +47,7 @@ from meshrec.recognition.phases import timed
 from meshrec.recognition.rescore import noise_and_points, rescored, would_recognise
 from meshrec.recognition.result import Recognition
 from meshrec.recognition.scoring import fit_p_value
-from meshrec.recognition.weak import weak_motion_starts
+from meshrec.recognition.weak import exploration_starts
 from meshrec.registration.poses import distinct_poses
 from meshrec.registration.register import Registration
 from meshrec.registration.transform import apply_transform
@@ -321,7 +321,7 @@ def _explore_weak_motions_one(rec: Recognition, model, memo: dict) -> Recognitio
     freedom = free_motions(rec, model, memo)[0]
     if freedom.unresolved or freedom.turns >= 3:
         return rec
-    starts = weak_motion_starts(model, rec.touch.points, best.T_model_touch)
+    starts = exploration_starts(model, rec.touch.points, best.T_model_touch)
     if not starts:
         return rec
     # refined coarse to fine, as for several touches (every start: the one nearest the

@@ -20,15 +20,18 @@ reached are starts for the joint refinement
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
 from meshrec.io.checks import check_points
+from meshrec.model.symmetry import turn_about
 from meshrec.registration.objective import residuals
 from meshrec.registration.transform import apply_transform
 
-__all__ = ["weak_motion_starts"]
+__all__ = ["exploration_starts", "near_symmetry_scan", "weak_motion_starts"]
 
 
 def weak_motion_starts(
@@ -69,13 +72,190 @@ def weak_motion_starts(
         (4, 4) array, ``ratio`` is not in (0, 1) or ``most`` is not a positive integer.
     """
     x = check_points(points, "points", min_rows=6)
-    T = np.asarray(T_model_touch, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ValueError(f"T_model_touch must be a finite (4, 4) array, got shape {T.shape}")
+    T = _checked_pose(T_model_touch)
     if not (isinstance(ratio, (int, float)) and 0.0 < float(ratio) < 1.0):
         raise ValueError(f"ratio must be a number in (0, 1), got {ratio!r}")
     if not isinstance(most, (int, np.integer)) or isinstance(most, bool) or most < 1:
         raise ValueError(f"most must be a positive integer, got {most!r}")
+    out = []
+    for motion in _weak_motions(model, x, T, float(ratio), int(most)):
+        if motion.turn:
+            for deg in defaults.WEAK_TURN_ANGLES_DEG:
+                out.append(motion.moved(np.radians(deg)) @ T)
+        else:
+            for step in defaults.WEAK_SLIDE_STEPS:
+                for sign in (1.0, -1.0):
+                    out.append(motion.moved(sign * step * motion.spread) @ T)
+    return out
+
+
+def near_symmetry_scan(
+    model,
+    points: np.ndarray,
+    T_model_touch: np.ndarray,
+    keep: int = defaults.WEAK_SCAN_KEEP,
+) -> list[np.ndarray]:
+    """Poses at the deepest other basins of whole turns about the model's near-symmetry
+    axes (``model.near_symmetries.axes``: a scanned can's).
+
+    Each turn goes all round in steps that move the farthest point by
+    ``defaults.WEAK_SCAN_STEP`` times the points' RMS spread (at most
+    ``defaults.WEAK_SCAN_MOST`` steps). Each step is scored by the mean squared distance
+    of up to ``defaults.WEAK_SCAN_POINTS`` of the points to the surface (one closest-point
+    query for the whole turn), and the ``keep`` deepest local minima, the given pose's own
+    basin left out, are returned as starts. The fixed angles of :func:`weak_motion_starts`
+    about an axis estimated from the data miss such basins: they are a few degrees wide,
+    and the data's axis is off the model's.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    points : (n, 3) float
+        The data points, touch frame; at least 6.
+    T_model_touch : (4, 4) float
+        The fitted pose.
+    keep : int
+        Local minima kept per axis; at least 1.
+
+    Returns
+    -------
+    list of (4, 4) float64
+        Empty when the model has no near-symmetry axis.
+
+    Raises
+    ------
+    ValueError
+        If ``points`` is not (n, 3) finite with n >= 6, ``T_model_touch`` is not a finite
+        (4, 4) array, or ``keep`` is not a positive integer.
+    """
+    x = check_points(points, "points", min_rows=6)
+    T = _checked_pose(T_model_touch)
+    if not isinstance(keep, (int, np.integer)) or isinstance(keep, bool) or keep < 1:
+        raise ValueError(f"keep must be a positive integer, got {keep!r}")
+    axes = model.near_symmetries.axes
+    if not axes:
+        return []
+    y = apply_transform(T, x[:: max(1, len(x) // defaults.WEAK_SCAN_POINTS)])
+    spread = float(np.sqrt(((y - y.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    if spread <= 0.0:
+        return []
+    out = []
+    for axis, through in axes:
+        radius = float(np.max(np.linalg.norm(np.cross(y - through, axis), axis=1)))
+        n = int(np.ceil(2.0 * np.pi * radius / (defaults.WEAK_SCAN_STEP * spread)))
+        angles = np.linspace(
+            0.0, 2.0 * np.pi, min(max(n, 3), defaults.WEAK_SCAN_MOST), endpoint=False
+        )
+        poses = np.array([turn_about(a, axis, through) for a in angles])
+        poses, score = _settled(model, y, poses)
+        for i in _local_minima(score, 0)[:keep]:
+            out.append(poses[i] @ T)
+    return out
+
+
+def _settled(model, y: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each of ``poses`` (k, 4, 4) after one damped point-to-plane step of the points
+    ``y`` (n, 3) onto the surface, and the points' mean squared distance there (k,).
+
+    A scan step lands a millimetre or so off the surface when the model's axis is that far
+    from the one the touch turned about (a scan's axis fits its surface only on average):
+    scored as it lands, the better basin would read worse than the nearby ones. One step
+    for all the poses at once (one closest-point query, then a 6 x 6 solve per pose)."""
+    k, n = len(poses), len(y)
+    moved = np.einsum("kij,nj->kni", poses[:, :3, :3], y) + poses[:, None, :3, 3]
+    flat = moved.reshape(-1, 3)
+    _, closest, face = model.surface.closest_points(flat)
+    normal = model.mesh.face_normals[face].reshape(k, n, 3)
+    r = np.einsum("kni,kni->kn", moved - closest.reshape(k, n, 3), normal)
+    centre = moved.mean(axis=1, keepdims=True)
+    J = np.concatenate([normal, np.cross(moved - centre, normal)], axis=2)  # (k, n, 6)
+    A = np.einsum("kni,knj->kij", J, J)
+    A += 1e-3 * np.trace(A, axis1=1, axis2=2)[:, None, None] / 6.0 * np.eye(6)
+    step = -np.linalg.solve(A, np.einsum("kni,kn->ki", J, r)[..., None])[..., 0]
+    settled = poses.copy()
+    for i in range(k):
+        R = Rotation.from_rotvec(step[i, 3:]).as_matrix()
+        M = np.eye(4)
+        M[:3, :3] = R
+        M[:3, 3] = centre[i, 0] - R @ centre[i, 0] + step[i, :3]
+        settled[i] = M @ poses[i]
+    moved = np.einsum("kij,nj->kni", settled[:, :3, :3], y) + settled[:, None, :3, 3]
+    d = model.surface.closest_points(moved.reshape(-1, 3))[0].reshape(k, n)
+    return settled, np.mean(d**2, axis=1)
+
+
+def _local_minima(score: np.ndarray, own: int) -> list[int]:
+    """The indices of the circular ``score``'s local minima, deepest first, the basin
+    holding ``own`` (the minimum reached from it by descent) left out."""
+    n = len(score)
+
+    def neighbours(i):
+        return (i - 1) % n, (i + 1) % n
+
+    i = own
+    while True:  # descend from the best pose to its own basin's bottom
+        j = min(neighbours(i), key=lambda k: score[k])
+        if score[j] >= score[i]:
+            break
+        i = j
+    minima = [
+        k for k in range(n) if k != i and all(score[k] <= score[m] for m in neighbours(k) if m != k)
+    ]
+    return sorted(minima, key=lambda k: score[k])
+
+
+def exploration_starts(model, points: np.ndarray, T_model_touch: np.ndarray) -> list[np.ndarray]:
+    """Every start from which a pose about to be given is refined again: along its
+    weakest motions (:func:`weak_motion_starts`), all round the model's near-symmetry
+    axes (:func:`near_symmetry_scan`), and carried by each of the model's near-symmetric
+    half-turns (a can turned upside down), with the turns about the axes from there.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    points : (n, 3) float
+        The data points, touch frame; at least 6.
+    T_model_touch : (4, 4) float
+        The fitted pose.
+
+    Returns
+    -------
+    list of (4, 4) float64
+
+    Raises
+    ------
+    ValueError
+        As :func:`weak_motion_starts`.
+    """
+    T = _checked_pose(T_model_touch)
+    starts = weak_motion_starts(model, points, T) + near_symmetry_scan(model, points, T)
+    for S in model.near_symmetries.half_turns:
+        turned = S @ T
+        starts += [turned, *near_symmetry_scan(model, points, turned)]
+    return starts
+
+
+@dataclass(frozen=True)
+class _Motion:
+    """One weak motion: a turn about ``axis`` through ``through``, or a slide along
+    ``axis``; ``spread`` is the points' RMS spread."""
+
+    turn: bool
+    axis: np.ndarray
+    through: np.ndarray
+    spread: float
+
+    def moved(self, amount: float) -> np.ndarray:
+        """The (4, 4) motion by ``amount`` (radians for a turn, model units for a slide)."""
+        if self.turn:
+            return turn_about(amount, self.axis, self.through)
+        M = np.eye(4)
+        M[:3, 3] = amount * self.axis
+        return M
+
+
+def _weak_motions(model, x: np.ndarray, T: np.ndarray, ratio: float, most: int) -> list[_Motion]:
+    """The rigid Jacobian's weak motions at pose ``T``, weakest first."""
     y = apply_transform(T, x)
     grad = residuals(model, y).gradient
     norm = np.linalg.norm(grad, axis=1)
@@ -96,22 +276,14 @@ def weak_motion_starts(
         if np.linalg.norm(v[3:]) >= defaults.POSE_TURN_FRACTION:
             axis = w / np.linalg.norm(w)
             through = c + np.cross(w, t) / float(w @ w)  # the point of the axis nearest c
-            for deg in defaults.WEAK_TURN_ANGLES_DEG:
-                R = Rotation.from_rotvec(np.radians(deg) * axis).as_matrix()
-                out.append(_about(R, through) @ T)
+            out.append(_Motion(True, axis, through, spread))
         else:
-            d = t / np.linalg.norm(t)
-            for step in defaults.WEAK_SLIDE_STEPS:
-                for sign in (1.0, -1.0):
-                    M = np.eye(4)
-                    M[:3, 3] = sign * step * spread * d
-                    out.append(M @ T)
+            out.append(_Motion(False, t / np.linalg.norm(t), c, spread))
     return out
 
 
-def _about(R: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """The (4, 4) rotation ``R`` about an axis through ``point``."""
-    M = np.eye(4)
-    M[:3, :3] = R
-    M[:3, 3] = point - R @ point
-    return M
+def _checked_pose(T_model_touch) -> np.ndarray:
+    T = np.asarray(T_model_touch, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ValueError(f"T_model_touch must be a finite (4, 4) array, got shape {T.shape}")
+    return T
