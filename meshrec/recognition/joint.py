@@ -616,6 +616,8 @@ def explore_weak_motions(
         return previous
     t0 = time.perf_counter()
     points = np.vstack([t.points for t in touches])
+    # (the touches' normals are not turned about: several touches pin phi far better
+    # than one, and each turn costs a joint refinement)
     starts = exploration_starts(model, points, reg.T_model_touch)
     if not starts:
         return previous

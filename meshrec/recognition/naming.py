@@ -321,7 +321,12 @@ def _explore_weak_motions_one(rec: Recognition, model, memo: dict) -> Recognitio
     freedom = free_motions(rec, model, memo)[0]
     if freedom.unresolved or freedom.turns >= 3:
         return rec
-    starts = exploration_starts(model, rec.touch.points, best.T_model_touch)
+    starts = exploration_starts(
+        model,
+        rec.touch.points,
+        best.T_model_touch,
+        [(rec.geometry.point, rec.geometry.normal)],
+    )
     if not starts:
         return rec
     # refined coarse to fine, as for several touches (every start: the one nearest the
