@@ -645,6 +645,9 @@ WEAK_SCAN_APART = 0.25
 #: master chef can's upside-down turns, 0.007 to 0.008 for the cracker box's, 0.0013 for
 #: the mustard bottle's about its long axis; 0.04 to 0.09 for the power drill's.
 NEAR_SYMMETRY_FRACTION = 0.02
+#: ... measured on at most this many of its vertices (evenly spread; the axis fitted on
+#: 200 of them).
+NEAR_SYMMETRY_VERTICES = 500
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.
 POSE_TURN_FRACTION = 0.1

@@ -103,7 +103,8 @@ def test_the_axis_is_fitted_where_a_hole_tilts_the_principal_axes(tmp_path):
     c = V[F].mean(axis=1)
     assert abs(c.mean(axis=0)[0]) > 0.005  # the hole moved the centroid (unweighted check)
     axis, through = model.near_symmetries.axes[0]
-    assert abs(axis[2]) > np.cos(np.radians(0.5))
+    # (the principal axis leans 2.7 degrees and passes 0.015 off the can's)
+    assert abs(axis[2]) > np.cos(np.radians(1.0))
     assert np.hypot(*(through - axis * through[2] / axis[2])[:2]) < 0.01
 
 

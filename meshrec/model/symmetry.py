@@ -107,10 +107,15 @@ def near_symmetries(
     d = centres - centroid
     _, axes = np.linalg.eigh((d * w[:, None]).T @ d)
     diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
-    probe = V[:: max(1, len(V) // defaults.POSE_SYMMETRY_VERTICES)]
+    probe = V[:: max(1, len(V) // defaults.NEAR_SYMMETRY_VERTICES)]
 
     def near(angle: float, axis: np.ndarray, through: np.ndarray) -> tuple[bool, float]:
         M = turn_about(angle, axis, through)
+        # a tenth of the vertices first: most turns tested are far from a symmetry, and the
+        # tree's queries far from the surface are the slow ones
+        few = surface.closest_points(probe[::10] @ M[:3, :3].T + M[:3, 3])[0]
+        if float(np.sqrt(np.mean(few**2))) > 2.0 * fraction * diagonal:
+            return False, float("inf")
         dist = surface.closest_points(probe @ M[:3, :3].T + M[:3, 3])[0]
         rms = float(np.sqrt(np.mean(dist**2)))
         return float(dist.max()) > exact_tolerance and rms <= fraction * diagonal, rms
@@ -124,7 +129,7 @@ def near_symmetries(
             if not near(angle, axis, centroid)[0]:
                 continue
             # the axis of a part with a hole or a handle leans off the principal one
-            a, p = _fitted_axis(angle, axis, centroid, probe, surface)
+            a, p = _fitted_axis(angle, axis, centroid, probe[:: max(1, len(probe) // 200)], surface)
             is_near, rms = near(angle, a, p)
             if is_near:
                 found.append((rms, (a, p)))
@@ -172,7 +177,7 @@ def _fitted_axis(
         return (moved - surface.closest_points(moved)[1]).ravel()
 
     start = offsets(np.zeros(4))
-    fit = least_squares(offsets, np.zeros(4), x_scale=0.01, max_nfev=40)
+    fit = least_squares(offsets, np.zeros(4), x_scale=0.01, max_nfev=30)
     if not np.isfinite(fit.cost) or 2.0 * fit.cost >= float(start @ start):
         return axis.copy(), through.copy()
     return axis_of(fit.x)
