@@ -40,7 +40,7 @@ from meshrec.recognition.weak import exploration_starts
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.objective import Residuals, residuals
 from meshrec.registration.phi import bracket_minima
-from meshrec.registration.poses import PoseHypothesis, distinct_poses, refined_pose
+from meshrec.registration.poses import PoseHypothesis, distinct_poses, keeps_side, refined_pose
 from meshrec.registration.register import Registration, StageTimes, register
 from meshrec.registration.transform import apply_transform, superposition
 
@@ -508,7 +508,7 @@ def register_touches(
             poses = distinct_poses(
                 sorted((*poses, *found), key=lambda p: p.rms), float(geometries[0].half_length)
             )
-    return _fit(model, touches, single, poses, time.perf_counter() - t1, t0)
+    return _fit(model, touches, single, poses, time.perf_counter() - t1, t0, geometries)
 
 
 def search_pairs(
@@ -801,15 +801,28 @@ def _with_poses(model, touches, geometries, previous: JointFit, found, t0: float
         sorted((*previous.registration.poses, *found), key=lambda p: p.rms),
         float(geometries[0].half_length),
     )
-    fit = _fit(model, touches, list(previous.single), poses, time.perf_counter() - t0, t0)
+    fit = _fit(
+        model, touches, list(previous.single), poses, time.perf_counter() - t0, t0, geometries
+    )
     reg = dataclasses.replace(
         fit.registration, seconds=previous.registration.seconds + fit.registration.seconds
     )
     return dataclasses.replace(fit, registration=reg)
 
 
-def _fit(model, touches, single, poses, t_joint: float, t0: float) -> JointFit:
-    """The JointFit the single registrations and the joint poses make."""
+def _fit(model, touches, single, poses, t_joint: float, t0: float, geometries=None) -> JointFit:
+    """The JointFit the single registrations and the joint poses make; given the touches'
+    ``geometries``, a pose that carries a touch through the surface where its side is
+    known (:func:`~meshrec.registration.poses.keeps_side`) is left out."""
+    if geometries is not None:
+        poses = tuple(
+            p
+            for p in poses
+            if all(
+                keeps_side(model, t, g, p.T_model_touch)
+                for t, g in zip(touches, geometries, strict=True)
+            )
+        )
     times = StageTimes(refine=t_joint)
     for reg in single:
         times = times + reg.times

@@ -48,7 +48,7 @@ from meshrec.recognition.rescore import noise_and_points, rescored, would_recogn
 from meshrec.recognition.result import Recognition
 from meshrec.recognition.scoring import fit_p_value
 from meshrec.recognition.weak import exploration_starts
-from meshrec.registration.poses import distinct_poses
+from meshrec.registration.poses import distinct_poses, keeps_side
 from meshrec.registration.register import Registration
 from meshrec.registration.transform import apply_transform
 
@@ -339,6 +339,7 @@ def _explore_weak_motions_one(rec: Recognition, model, memo: dict) -> Recognitio
         best=len(starts),
         start_ratio=float("inf"),
     )
+    found = [p for p in found if keeps_side(model, rec.touch, rec.geometry, p.T_model_touch)]
     reg = _with_more_poses(best, found, rec.touch, rec.geometry)
     return dataclasses.replace(rec, ranking=(reg, *rec.ranking[1:]))
 
@@ -393,5 +394,8 @@ def _transferred(rec: Recognition, models: list, fits: dict, noise: float) -> Re
             ranking.append(fit.registration)
         else:
             found = transferred_poses(rec.touches, model, rec.geometries, seeds, reach)
+            found = [
+                p for p in found if keeps_side(model, rec.touch, rec.geometry, p.T_model_touch)
+            ]
             ranking.append(_with_more_poses(reg, found, rec.touch, rec.geometry))
     return dataclasses.replace(rec, ranking=tuple(ranking))

@@ -21,7 +21,7 @@ from meshrec.io.checks import check_instance, check_number, check_vector
 from meshrec.model.index import ModelIndex
 from meshrec.registration.batch import refine_rigid_batch
 from meshrec.registration.chart import tangent_frame
-from meshrec.registration.lookup import ContactCandidates
+from meshrec.registration.lookup import ContactCandidates, surface_sides
 from meshrec.registration.refine import Refinement
 from meshrec.registration.searching import Searches
 from meshrec.registration.transform import apply_transform, superposition
@@ -30,6 +30,7 @@ __all__ = [
     "PoseHypothesis",
     "RefinedSearch",
     "distinct_poses",
+    "keeps_side",
     "pose_hypotheses",
     "refine_searches",
     "refined_pose",
@@ -234,11 +235,8 @@ def pose_hypotheses(
         run = searches.runs[r.run]
         side = candidates.sides[candidates.side[run.candidate]]
         T = r.refinement.T_model_touch
-        guess = apply_transform(T, candidates.geometry.point[None, :])
-        _, closest, face = model.surface.closest_points(guess)
-        normal = model.surface.interpolated_normals(closest, face)[0]
-        placed_n = T[:3, :3] @ side.frame[:, 2]
-        if known_side and float(normal @ placed_n) < defaults.POSE_SIDE_MIN_COS:
+        closest, normal = _placed_contact(model, T, candidates.geometry.point)
+        if known_side and not _keeps_side(T, side, normal):
             # Through the surface: a probe (stop 34) touched a 1 mm-walled tube's inside,
             # normal given, and the refinement carried the data from the inner wall to
             # the outer one, where the tube was then scored (and a ball tip suggested).
@@ -321,3 +319,47 @@ def distinct_poses(
         if not any(_same_pose(k, h, distance, angle) for k in kept):
             kept.append(h)
     return tuple(kept)
+
+
+def keeps_side(model, touch, geometry, T_model_touch: np.ndarray) -> bool:
+    """Whether the pose leaves the touch on its own side of the surface.
+
+    Where the side is known (:func:`~meshrec.registration.lookup.surface_sides` holds
+    one: a normal given with the touch on a closed model, or the one side a ball tip can
+    trace), a pose whose placed touch normal meets the surface's normal at the placed
+    contact below ``defaults.POSE_SIDE_MIN_COS`` carried the data through the surface (a
+    thin wall) and is no placement of the touch. True where the side is not known.
+    Every source of poses applies it: the registration's own
+    (:func:`pose_hypotheses`), and those refined again before a model is named.
+
+    Parameters
+    ----------
+    model : ModelIndex
+    touch : TouchData
+    geometry : LocalGeometry
+        The touch's local geometry.
+    T_model_touch : (4, 4) float
+
+    Returns
+    -------
+    bool
+    """
+    if touch.normal is not None and float(geometry.normal @ touch.normal) < 0.0:
+        geometry = geometry.flipped()  # the side the given normal says
+    sides = surface_sides(geometry, touch, model)
+    if len(sides) != 1:
+        return True
+    T = np.asarray(T_model_touch, dtype=np.float64)
+    _, normal = _placed_contact(model, T, geometry.point)
+    return _keeps_side(T, sides[0], normal)
+
+
+def _placed_contact(model, T: np.ndarray, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface point nearest the placed contact, and the surface's normal there."""
+    guess = apply_transform(T, np.asarray(point, dtype=np.float64)[None, :])
+    _, closest, face = model.surface.closest_points(guess)
+    return closest, model.surface.interpolated_normals(closest, face)[0]
+
+
+def _keeps_side(T: np.ndarray, side, normal: np.ndarray) -> bool:
+    return float(normal @ (T[:3, :3] @ side.frame[:, 2])) >= defaults.POSE_SIDE_MIN_COS
