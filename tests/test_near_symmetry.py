@@ -161,6 +161,14 @@ def test_near_symmetry_scan_bad_input_raises(can_model):
         exploration_starts(can_model, pts, np.full((4, 4), np.nan))
 
 
+def _fixed_freedom():
+    rng = np.random.default_rng(0)
+    normals = rng.normal(size=(20, 3))
+    return pose_freedom(
+        rng.normal(size=(20, 3)), normals / np.linalg.norm(normals, axis=1)[:, None]
+    )
+
+
 def _flat_freedom():
     pts = np.c_[np.linspace(-1, 1, 20), np.linspace(0, 0.5, 20) ** 2, np.zeros(20)]
     normals = np.tile([0.0, 0.0, 1.0], (20, 1))
@@ -178,6 +186,16 @@ def test_poses_a_near_symmetry_apart_are_two_answers_not_one():
     on_itself = lambda p: np.zeros(len(p))  # noqa: E731 - every motion is a "symmetry"
     f = with_alternatives(_flat_freedom(), [T0, T1], [0.5, 0.5], vertices, on_itself, 1e-6)
     assert f.alternatives == 0  # the symmetry test alone merges them
+    assert f.twin_apart == 0.0  # (no points given)
+    f = with_alternatives(
+        _fixed_freedom(), [T0, T1], [0.5, 0.5], vertices, on_itself, 1e-6, points=points, within=0.1
+    )
+    assert f.alternatives == 0
+    # the half-turn about x moves (0, 1, z) to (0, -1, -z): 2.2 and 2.44 apart
+    assert f.twin_apart == pytest.approx(np.hypot(2.0, 1.4))
+    assert f.fixed
+    assert "near-symmetry" in f.description
+    assert f.to_dict()["twin_apart"] == pytest.approx(np.hypot(2.0, 1.4))
     never = lambda p: np.ones(len(p))  # noqa: E731 - no motion is a symmetry
     f = with_alternatives(
         _flat_freedom(), [T0, T1], [0.5, 0.5], vertices, never, 1e-6, points=points, within=0.1

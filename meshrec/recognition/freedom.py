@@ -71,6 +71,12 @@ class PoseFreedom(ValueEquality):
         The weight of the reported pose and the poses grouped with it (a symmetry of the
         model, or a motion within the tolerance: :func:`with_alternatives`) among the
         model's pose hypotheses; NaN when not checked.
+    twin_apart : float
+        How far apart, at most, the poses grouped with the reported one because they move
+        the model (almost) onto itself place the data points: a symmetry's or a
+        near-symmetry's twins (a slightly oval cylinder turned), which fit as well and
+        leave the object where it was, but not the touch; 0 when there are none or when
+        not checked. The description then says so.
     """
 
     free: int
@@ -86,6 +92,7 @@ class PoseFreedom(ValueEquality):
     sigma: float = float("nan")
     alternatives: int = 0
     pose_weight: float = float("nan")
+    twin_apart: float = 0.0
 
     @property
     def unresolved(self) -> int:
@@ -115,6 +122,12 @@ class PoseFreedom(ValueEquality):
             )
             return text if self.free == 0 else f"{text}; {self._free_phrase()}"
         if self.free == 0:
+            if self.twin_apart > 0.0:
+                return (
+                    "fixed up to a symmetry or near-symmetry of the model (poses that place "
+                    f"the data up to {self.twin_apart:.3g} apart fit as well and leave the "
+                    "model where it is)"
+                )
             return "fixed"
         if self.unresolved == 0:
             # every free motion a symmetry of the model: the pose is fixed (a probe read
@@ -144,7 +157,7 @@ class PoseFreedom(ValueEquality):
         """JSON-ready: ``free``, ``slides``, ``turns``, ``names``, ``description``,
         ``slide_directions``, ``turn_axes``, ``turn_points``, ``singular_values``, the
         symmetry flags, ``unresolved``, ``sigma`` (None when NaN or infinite),
-        ``alternatives``, ``pose_weight`` (None when NaN) and ``fixed``."""
+        ``alternatives``, ``pose_weight`` (None when NaN), ``twin_apart`` and ``fixed``."""
         return {
             "free": int(self.free),
             "slides": int(self.slides),
@@ -161,6 +174,7 @@ class PoseFreedom(ValueEquality):
             "sigma": float(self.sigma) if np.isfinite(self.sigma) else None,
             "alternatives": int(self.alternatives),
             "pose_weight": float(self.pose_weight) if np.isfinite(self.pose_weight) else None,
+            "twin_apart": float(self.twin_apart),
             "fixed": bool(self.fixed),
         }
 
@@ -397,9 +411,11 @@ def with_alternatives(
     each other (a second basin inside the pose's own uncertainty). A near-symmetry of the
     model, such as a scanned can turned upside down, moves the model less than the data's
     precision but the touch by centimetres: two such poses are distinct answers, not one.
-    The poses are grouped by that test, in the order given, each
-    into the first group whose first pose it equals; the reported pose (the first) leads
-    the first group. ``pose_weight`` is that group's weight, and ``alternatives`` the
+    The poses are grouped by that test, in the order given, each into the first group
+    whose first pose it equals; the reported pose (the first) leads the first group.
+    ``twin_apart`` is how far apart the poses grouped with the reported one by the model
+    test (not by the data's ``within``) place the ``points``. ``pose_weight`` is that
+    group's weight, and ``alternatives`` the
     number of other groups needed, heaviest first, for the weights to reach ``coverage``:
     the poses of the model the data cannot tell apart (as the plausible set does for
     models, :func:`meshrec.recognition.scoring.plausible_set`).
@@ -462,16 +478,21 @@ def with_alternatives(
         return replace(freedom, alternatives=0, pose_weight=float(w[0]))
     leaders: list[int] = [0]
     group_weight = [float(w[0])]
+    twin_apart = 0.0
     for i in range(1, len(T)):
         if w[i] < defaults.POSE_ALTERNATIVE_MIN_WEIGHT:
             continue
         for g, j in enumerate(leaders):
             # T_j T_i^-1 maps the model onto itself when the two poses agree.
             D = T[j] @ np.linalg.inv(T[i])
-            if (x is not None and _apart(T[i], T[j], x) <= within) or _stays(
-                distance, v @ D[:3, :3].T + D[:3, 3], float(tolerance)
-            ):
+            apart = _apart(T[i], T[j], x) if x is not None else 0.0
+            if x is not None and apart <= within:
                 group_weight[g] += float(w[i])
+                break
+            if _stays(distance, v @ D[:3, :3].T + D[:3, 3], float(tolerance)):
+                group_weight[g] += float(w[i])
+                if g == 0:
+                    twin_apart = max(twin_apart, apart)
                 break
         else:
             leaders.append(i)
@@ -483,7 +504,9 @@ def with_alternatives(
             break
         total += gw
         alternatives += 1
-    return replace(freedom, alternatives=alternatives, pose_weight=group_weight[0])
+    return replace(
+        freedom, alternatives=alternatives, pose_weight=group_weight[0], twin_apart=twin_apart
+    )
 
 
 def _apart(T_a: np.ndarray, T_b: np.ndarray, x: np.ndarray) -> float:
