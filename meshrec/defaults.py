@@ -639,14 +639,19 @@ WEAK_SCAN_SETTLE = 3
 #: and from each other) are refined.
 WEAK_SCAN_KEEP = 3
 WEAK_SCAN_APART = 0.25
-#: A half-turn about a principal axis of a model's surface is a near-symmetry
-#: (meshrec.model.symmetry) when it moves the model's vertices within this fraction of its
-#: diagonal of the surface (RMS). The YCB scans (in metres) read 0.003 to 0.004 for the
-#: master chef can's upside-down turns, 0.007 to 0.008 for the cracker box's, 0.0013 for
-#: the mustard bottle's about its long axis; 0.04 to 0.09 for the power drill's.
-NEAR_SYMMETRY_FRACTION = 0.02
-#: ... measured on at most this many of its vertices (evenly spread; the axis fitted on
-#: 200 of them).
+#: A half-turn, or a turn by POSE_SYMMETRY_TURN_DEG, about a principal axis of a model's
+#: surface or one of its coordinate axes is a near-symmetry (meshrec.model.symmetry) when
+#: it moves the model's surface within this fraction of its diagonal of itself (RMS over
+#: points drawn by area), the axis fitted. The YCB scans (in metres) read 0.0015 for the
+#: master chef can's turns about its axis and 0.0066 for the tomato soup can's, 0.003 to
+#: 0.008 for the cans' and the boxes' half-turns; the bundled ellipsoid (semi-axes 1, 0.8,
+#: 0.6) 0.020 about its long axis, which is no near-symmetry; the power drill 0.04 to 0.09.
+NEAR_SYMMETRY_FRACTION = 0.01
+#: ... the distance taken at this quantile of the points (not their RMS: most of a can with
+#: holes, or of a mug with a handle, turns onto itself, the holes and the handle do not).
+NEAR_SYMMETRY_QUANTILE = 0.8
+#: ... measured at this many points on its surface (drawn by area, seeded; the axis fitted
+#: on half of them) ...
 NEAR_SYMMETRY_VERTICES = 500
 #: A free twist counts as a turn when its rotational part is at least this (unit twists,
 #: rotation scaled by L); the rest are slides.

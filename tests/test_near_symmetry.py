@@ -108,6 +108,32 @@ def test_the_axis_is_fitted_where_a_hole_tilts_the_principal_axes(tmp_path):
     assert np.hypot(*(through - axis * through[2] / axis[2])[:2]) < 0.01
 
 
+def test_a_box_with_one_corner_chamfered_has_its_half_turns(tmp_path):
+    # A black-box probe (stop 35): one touch near a plain corner of a 60 x 40 x 30 box with
+    # one corner chamfered, exported with 10 vertices, gave the pose `fixed` and 28 mm off,
+    # the true pose (a half-turn of the box away) fitting as well. The chamfer leans the
+    # principal axes 12 degrees off the box's; the box's own axes give the half-turns.
+    m3d = pytest.importorskip("manifold3d")
+    n = -np.ones(3) / np.sqrt(3.0)
+    box = m3d.Manifold.cube([60.0, 40.0, 30.0], True)
+    cut = box.trim_by_plane(n.tolist(), float(n @ np.array([30.0, 20.0, 15.0]) + 6.0))
+    mesh = cut.to_mesh()
+    folder = tmp_path / "m"
+    folder.mkdir()
+    trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts)).export(
+        folder / "box_chamfer.stl"
+    )
+    model = meshrec.ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")["box_chamfer"]
+    found = model.near_symmetries
+    assert len(found.half_turns) == 3
+    for S in found.half_turns:
+        # a half-turn about one of the box's axes, through its centre
+        assert np.allclose(np.abs(np.diag(S[:3, :3])), 1.0, atol=1e-2)
+        assert np.trace(S[:3, :3]) == pytest.approx(-1.0, abs=1e-2)
+        assert np.abs(S[:3, 3]).max() < 0.5
+    assert found.axes == ()
+
+
 def test_near_symmetries_bad_input_raises(can_model):
     with pytest.raises(ValueError, match="exact_tolerance"):
         near_symmetries(can_model.mesh, can_model.surface, -1.0)

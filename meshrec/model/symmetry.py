@@ -15,7 +15,8 @@ surface; the model's own axis is needed.
 The candidates are the half-turns and the turns about the principal axes of the
 surface's area (through its area centroid): a symmetric body's symmetry axes are
 principal axes. One is near when the model's vertices, so turned, lie within
-``defaults.NEAR_SYMMETRY_FRACTION`` of its diagonal of its surface (RMS), and not all
+``defaults.NEAR_SYMMETRY_FRACTION`` of its diagonal of its surface (at the
+``defaults.NEAR_SYMMETRY_QUANTILE`` quantile of points drawn by area), and not all
 within the exact-symmetry tolerance (a half-turn that is a symmetry moves no data: a
 box's or a cylinder's poses so related are the same answer, as the pose test of
 :mod:`meshrec.recognition.freedom` takes them).
@@ -80,7 +81,8 @@ def near_symmetries(
         symmetry of the model, not a near one, and is left out; at least 0.
     fraction : float
         A motion is near when it moves the vertices by at most this fraction of the
-        diagonal (RMS distance to the surface); in (0, 1).
+        diagonal (distance to the surface at ``defaults.NEAR_SYMMETRY_QUANTILE``); in
+        (0, 1).
 
     Returns
     -------
@@ -107,32 +109,46 @@ def near_symmetries(
     d = centres - centroid
     _, axes = np.linalg.eigh((d * w[:, None]).T @ d)
     diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
-    probe = V[:: max(1, len(V) // defaults.NEAR_SYMMETRY_VERTICES)]
+    # Points spread over the surface by area (a coarse CAD export's few vertices sit at its
+    # corners, where a chamfer's change hides), the same points on every call.
+    probe = _area_samples(V, F, area, defaults.NEAR_SYMMETRY_VERTICES)
 
-    def near(angle: float, axis: np.ndarray, through: np.ndarray) -> tuple[bool, float]:
+    def moved_distance(angle: float, axis: np.ndarray, through: np.ndarray, points) -> np.ndarray:
         M = turn_about(angle, axis, through)
-        # a tenth of the vertices first: most turns tested are far from a symmetry, and the
-        # tree's queries far from the surface are the slow ones
-        few = surface.closest_points(probe[::10] @ M[:3, :3].T + M[:3, 3])[0]
-        if float(np.sqrt(np.mean(few**2))) > 2.0 * fraction * diagonal:
-            return False, float("inf")
-        dist = surface.closest_points(probe @ M[:3, :3].T + M[:3, 3])[0]
-        rms = float(np.sqrt(np.mean(dist**2)))
-        return float(dist.max()) > exact_tolerance and rms <= fraction * diagonal, rms
+        return surface.closest_points(points @ M[:3, :3].T + M[:3, 3])[0]
 
+    # The candidate axes: the principal axes through the area centroid, and the model's
+    # own coordinate axes through its bounding box's centre (a CAD export's frame: a box
+    # with one corner chamfered has its principal axes 12 degrees off the box's, and its
+    # centroid beside the box's centre).
+    box_centre = 0.5 * (V.min(axis=0) + V.max(axis=0))
+    candidates = [(a, centroid) for a in axes.T]
+    for a in np.eye(3):
+        if not any(abs(a @ b) > np.cos(np.radians(5.0)) for b, _ in candidates[:3]):
+            candidates.append((a, box_centre))
     half_turns, turns = [], []
-    for axis in axes.T:
+    for axis, through in candidates:
         for angle, found in (
             (np.pi, half_turns),
             (np.radians(defaults.POSE_SYMMETRY_TURN_DEG), turns),
         ):
-            if not near(angle, axis, centroid)[0]:
+            # a tenth of the points first: most turns tested are far from a symmetry, and
+            # the tree's queries far from the surface are the slow ones
+            few = moved_distance(angle, axis, through, probe[::10])
+            if _spread(few) > 2.0 * fraction * diagonal:
                 continue
+            dist = moved_distance(angle, axis, through, probe)
+            if float(dist.max()) <= exact_tolerance:
+                continue  # a symmetry (a cylinder's axis): its poses are one answer
             # the axis of a part with a hole or a handle leans off the principal one
-            a, p = _fitted_axis(angle, axis, centroid, probe[:: max(1, len(probe) // 200)], surface)
-            is_near, rms = near(angle, a, p)
-            if is_near:
-                found.append((rms, (a, p)))
+            fitted = _fitted_axis(angle, axis, through, probe[::2], surface, fraction * diagonal)
+            dist_fit = moved_distance(angle, *fitted, probe)
+            a, p = fitted if _spread(dist_fit) < _spread(dist) else (axis, through)
+            dist = dist_fit if _spread(dist_fit) < _spread(dist) else dist
+            spread = _spread(dist)
+            near = float(dist.max()) > exact_tolerance and spread <= fraction * diagonal
+            if near and not any(abs(a @ b) > np.cos(np.radians(5.0)) for _, (b, _) in found):
+                found.append((spread, (a, p)))
     if turns:
         # A half-turn about a near-symmetry axis is on the turns' scan, and two upside-down
         # half-turns differ by one about it: the nearest upside-down one is enough.
@@ -154,13 +170,25 @@ def turn_about(angle: float, axis: np.ndarray, through: np.ndarray) -> np.ndarra
     return M
 
 
+def _spread(distance: np.ndarray) -> float:
+    """How far the points moved by a turn lie from the surface: the
+    ``defaults.NEAR_SYMMETRY_QUANTILE`` quantile of their distances."""
+    return float(np.quantile(distance, defaults.NEAR_SYMMETRY_QUANTILE))
+
+
 def _fitted_axis(
-    angle: float, axis: np.ndarray, through: np.ndarray, probe: np.ndarray, surface
+    angle: float,
+    axis: np.ndarray,
+    through: np.ndarray,
+    probe: np.ndarray,
+    surface,
+    outlier: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The axis near ``(axis, through)`` about which a turn by ``angle`` carries the
-    ``probe`` vertices nearest the surface (least squares over the axis's two tilts and
-    two shifts; scipy's ``least_squares`` on the vertices' offsets to their closest
-    points). The start is kept when the fit does not improve on it."""
+    ``probe`` points nearest the surface: robust least squares (scipy's ``least_squares``,
+    soft-L1 loss beyond ``outlier``, so that a handle or a hole does not pull the axis)
+    over the axis's two tilts and two shifts, on the points' offsets to their closest
+    points."""
     u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
     u /= np.linalg.norm(u)
     v = np.cross(axis, u)
@@ -176,8 +204,19 @@ def _fitted_axis(
         moved = probe @ M[:3, :3].T + M[:3, 3]
         return (moved - surface.closest_points(moved)[1]).ravel()
 
-    start = offsets(np.zeros(4))
-    fit = least_squares(offsets, np.zeros(4), x_scale=0.01, max_nfev=30)
-    if not np.isfinite(fit.cost) or 2.0 * fit.cost >= float(start @ start):
-        return axis.copy(), through.copy()
-    return axis_of(fit.x)
+    fit = least_squares(
+        offsets, np.zeros(4), x_scale=0.01, max_nfev=30, loss="soft_l1", f_scale=outlier
+    )
+    return axis_of(fit.x) if np.all(np.isfinite(fit.x)) else (axis.copy(), through.copy())
+
+
+def _area_samples(V: np.ndarray, F: np.ndarray, area: np.ndarray, count: int) -> np.ndarray:
+    """``count`` points on the surface, faces drawn by area (seeded: the same points for the
+    same mesh)."""
+    rng = np.random.default_rng(0)
+    face = rng.choice(len(F), size=count, p=area / area.sum())
+    u, v = rng.random(count), rng.random(count)
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    a, b, c = V[F[face, 0]], V[F[face, 1]], V[F[face, 2]]
+    return a + u[:, None] * (b - a) + v[:, None] * (c - a)
