@@ -612,33 +612,36 @@ WEAK_MOTION_MOST = 2
 WEAK_TURN_ANGLES_DEG = (-120.0, -60.0, 60.0, 120.0, 180.0)
 #: Slides tried along a weak slide, in multiples of the points' RMS spread, either way.
 WEAK_SLIDE_STEPS = (1.0, 2.0, 4.0)
-#: Each weak motion is also scanned densely (meshrec.recognition.weak.weak_motion_scan):
-#: a whole turn about a weak turn's axis, or the model's extent along a weak slide, in
-#: steps that move the farthest data point by this fraction of the points' RMS spread; each
-#: step scored by the points' mean squared distance to the surface. Fixed angles missed
-#: the better basin on a scanned can: a touch of the YCB master chef can (seed 503) was
-#: `recognised` with its pose `fixed` 133 degrees about the can's axis from the truth, the
-#: true pose fitting 2.4 times better; its basins along the turn are a few degrees wide.
+#: A model's near-symmetry axes (meshrec.model.symmetry) are scanned whole
+#: (meshrec.recognition.weak.near_symmetry_scan), in steps that move the farthest data
+#: point by this fraction of the points' RMS spread. Fixed angles about the data's own
+#: weak turn missed the better basin on a scanned can: a touch of the YCB master chef can
+#: (seed 503) was `recognised` with its pose `fixed` 133 degrees about the can's axis from
+#: the truth, the true pose fitting 2.4 times better; its basins along the turn are a few
+#: degrees wide, and the data's axis was 1.5 mm off the can's.
 WEAK_SCAN_STEP = 0.25
-#: ... at most this many steps per motion (the step grows beyond) ...
+#: ... at most this many steps per turn (the step grows beyond) ...
 WEAK_SCAN_MOST = 180
 #: ... on at most this many of the points, evenly spread ...
 WEAK_SCAN_POINTS = 48
-#: Before one touch names a model, its pose is also refined from turns by these angles
-#: (degrees) about the touch's normal at the contact (meshrec.recognition.weak.
-#: normal_turn_starts): the method's rotation phi looked at again. On the 4,000-face
-#: drill of a stop-34 probe the pose was 26 degrees off; turns of -30 to -60 degrees
-#: reach the truth, -20 and +10 to +60 do not.
-NORMAL_TURN_ANGLES_DEG = (-135.0, -90.0, -45.0, 45.0, 90.0, 135.0, 180.0)
-#: ... each step settled onto the surface by this many damped point-to-plane steps (on the
-#: 4,000-face drill, a turn of 40 degrees about the touch's normal reads 4 times the
-#: pose's RMS as it lands, and its basin is the true pose's) ...
+#: ... each step settled onto the surface by this many damped point-to-plane steps (the
+#: model's axis, fitted to its surface on average, lies a little off the one the touch
+#: turns about: a step lands a millimetre or so off the surface, and scored as it lands
+#: the better basin reads worse than its neighbours) ...
 WEAK_SCAN_SETTLE = 3
 #: ... and the deepest this-many distinct basins of each scan (settled poses that place
 #: the points more than WEAK_SCAN_APART times their RMS spread from the pose scanned from
 #: and from each other) are refined.
 WEAK_SCAN_KEEP = 3
 WEAK_SCAN_APART = 0.25
+#: Before one touch names a model, its pose is also refined from turns by these angles
+#: (degrees) about the touch's normal at the contact (meshrec.recognition.weak.
+#: normal_turn_starts): the method's rotation phi looked at again. On the 4,000-face
+#: drill of a stop-34 probe the pose was 26 degrees off; turns of -30 to -60 degrees
+#: reach the truth, -20 and +10 to +60 do not. (Scanned and settled instead, the turns
+#: about the normal of a surface curved unequally both ways land 4 times the pose's RMS off
+#: it and show no basin there.)
+NORMAL_TURN_ANGLES_DEG = (-135.0, -90.0, -45.0, 45.0, 90.0, 135.0, 180.0)
 #: A half-turn, or a turn by POSE_SYMMETRY_TURN_DEG, about a principal axis of a model's
 #: surface or one of its coordinate axes is a near-symmetry (meshrec.model.symmetry) when
 #: it moves the model's surface within this fraction of its diagonal of itself (RMS over

@@ -453,7 +453,8 @@ def decide(
             "recognised",
             plausible,
             f"{plausible[0]} has probability {p[best]:.3f} (the other models "
-            f"{max(1.0 - p[best], 0.0):.2g} together) and fits to {ratio:.3g} times the noise",
+            f"{max(1.0 - p[best], 0.0):.2g} together, at the best poses their searches "
+            f"found) and fits to {ratio:.3g} times the noise",
             ratio,
         )
     return Verdict(

@@ -16,6 +16,13 @@ way: turns of ``defaults.WEAK_TURN_ANGLES_DEG`` about their axis, slides of
 reached are starts for the joint refinement
 (:func:`meshrec.recognition.joint.explore_weak_motions`). A well-constrained pose
 (an ellipsoid's curved side, an edge) has no weak motion and gets no start.
+
+The data's own weak motions are a local estimate: about a scanned can, whose basins along
+the turn are a few degrees wide, their axis is a millimetre off the can's. The model's
+near-symmetries (:mod:`meshrec.model.symmetry`) give the rest of the starts: whole turns
+about its near-symmetry axes, scanned (:func:`near_symmetry_scan`), and its near-symmetric
+half-turns (a can upside down). One touch's pose is also turned about its normal
+(:func:`normal_turn_starts`). :func:`exploration_starts` gathers them all.
 """
 
 from __future__ import annotations
@@ -105,12 +112,13 @@ def near_symmetry_scan(
 
     Each turn goes all round in steps that move the farthest point by
     ``defaults.WEAK_SCAN_STEP`` times the points' RMS spread (at most
-    ``defaults.WEAK_SCAN_MOST`` steps). Each step is scored by the mean squared distance
-    of up to ``defaults.WEAK_SCAN_POINTS`` of the points to the surface (one closest-point
-    query for the whole turn), and the ``keep`` deepest local minima, the given pose's own
-    basin left out, are returned as starts. The fixed angles of :func:`weak_motion_starts`
-    about an axis estimated from the data miss such basins: they are a few degrees wide,
-    and the data's axis is off the model's.
+    ``defaults.WEAK_SCAN_MOST`` steps). Each step is settled onto the surface
+    (``defaults.WEAK_SCAN_SETTLE`` point-to-plane steps) and scored by the mean squared
+    distance of up to ``defaults.WEAK_SCAN_POINTS`` of the points to the surface (one
+    closest-point query per settling step for the whole turn), and the ``keep`` deepest
+    distinct basins, the given pose's own left out, are returned as starts. The fixed
+    angles of :func:`weak_motion_starts` about an axis estimated from the data miss such
+    basins: they are a few degrees wide, and the data's axis is off the model's.
 
     Parameters
     ----------
@@ -120,7 +128,7 @@ def near_symmetry_scan(
     T_model_touch : (4, 4) float
         The fitted pose.
     keep : int
-        Local minima kept per axis; at least 1.
+        Basins kept per axis; at least 1.
 
     Returns
     -------
