@@ -179,6 +179,8 @@ def test_near_symmetry_scan_bad_input_raises(can_model):
     pts = np.c_[np.linspace(-0.2, 0.2, 10), np.ones(10), np.zeros(10)]
     with pytest.raises(ValueError, match="keep"):
         near_symmetry_scan(can_model, pts, np.eye(4), keep=0)
+    with pytest.raises(TypeError, match="keep"):
+        near_symmetry_scan(can_model, pts, np.eye(4), keep=1.5)
     with pytest.raises(ValueError, match="T_model_touch"):
         near_symmetry_scan(can_model, pts, np.eye(3))
     with pytest.raises(ValueError, match="points"):

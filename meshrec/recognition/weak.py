@@ -33,7 +33,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from meshrec import defaults
-from meshrec.io.checks import check_points
+from meshrec.io.checks import check_int, check_points, check_transform, check_vector
 from meshrec.model.symmetry import turn_about
 from meshrec.registration.objective import residuals
 from meshrec.registration.transform import apply_transform
@@ -84,7 +84,7 @@ def weak_motion_starts(
         (4, 4) array, ``ratio`` is not in (0, 1) or ``most`` is not a positive integer.
     """
     x = check_points(points, "points", min_rows=6)
-    T = _checked_pose(T_model_touch)
+    T = check_transform(T_model_touch, "T_model_touch")
     if not (isinstance(ratio, (int, float)) and 0.0 < float(ratio) < 1.0):
         raise ValueError(f"ratio must be a number in (0, 1), got {ratio!r}")
     if not isinstance(most, (int, np.integer)) or isinstance(most, bool) or most < 1:
@@ -137,14 +137,15 @@ def near_symmetry_scan(
 
     Raises
     ------
+    TypeError
+        If ``keep`` is not an integer.
     ValueError
         If ``points`` is not (n, 3) finite with n >= 6, ``T_model_touch`` is not a finite
-        (4, 4) array, or ``keep`` is not a positive integer.
+        (4, 4) array, or ``keep`` is below 1.
     """
     x = check_points(points, "points", min_rows=6)
-    T = _checked_pose(T_model_touch)
-    if not isinstance(keep, (int, np.integer)) or isinstance(keep, bool) or keep < 1:
-        raise ValueError(f"keep must be a positive integer, got {keep!r}")
+    T = check_transform(T_model_touch, "T_model_touch")
+    keep = check_int(keep, "keep", minimum=1)
     axes = model.near_symmetries.axes
     if not axes:
         return []
@@ -194,15 +195,9 @@ def normal_turn_starts(
         zero.
     """
     check_points(points, "points", min_rows=6)
-    T = _checked_pose(T_model_touch)
-    p = np.asarray(point, dtype=np.float64)
-    n = np.asarray(normal, dtype=np.float64)
-    for name, v in (("point", p), ("normal", n)):
-        if v.shape != (3,) or not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} must be a finite 3-vector, got {np.asarray(v)!r}")
-    if not np.linalg.norm(n) > 0.0:
-        raise ValueError("normal must be non-zero, got [0. 0. 0.]")
-    axis = T[:3, :3] @ (n / np.linalg.norm(n))
+    T = check_transform(T_model_touch, "T_model_touch")
+    p = check_vector(point, "point")
+    axis = T[:3, :3] @ check_vector(normal, "normal", unit=True)
     through = T[:3, :3] @ p + T[:3, 3]
     return [
         turn_about(np.radians(deg), axis, through) @ T for deg in defaults.NORMAL_TURN_ANGLES_DEG
@@ -304,7 +299,7 @@ def exploration_starts(
     ValueError
         As :func:`weak_motion_starts` and :func:`normal_turn_starts`.
     """
-    T = _checked_pose(T_model_touch)
+    T = check_transform(T_model_touch, "T_model_touch")
     starts = weak_motion_starts(model, points, T)
     for point, normal in contacts:
         starts += normal_turn_starts(points, T, point, normal)
@@ -360,10 +355,3 @@ def _weak_motions(model, x: np.ndarray, T: np.ndarray, ratio: float, most: int) 
         else:
             out.append(_Motion(False, t / np.linalg.norm(t), c, spread))
     return out
-
-
-def _checked_pose(T_model_touch) -> np.ndarray:
-    T = np.asarray(T_model_touch, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ValueError(f"T_model_touch must be a finite (4, 4) array, got shape {T.shape}")
-    return T
