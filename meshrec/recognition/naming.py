@@ -15,7 +15,8 @@ searches end short, and the scores are taken afresh after each look:
   (:func:`~meshrec.recognition.passes.looked_harder`); a curvature estimate out of its
   range has the models that the lookup alone rejected registered on every site; the
   named model's own search is run again with more candidates (:func:`_confirmed`); its
-  poses along its weakest motions are refined (:func:`_explore_weak_motions_one`); and
+  poses along its weakest motions, across its near-symmetries and turned about the
+  touch's normal are refined (:func:`_explore_weak_motions_one`); and
   its best poses are refined on every other model (:func:`_transferred`).
 
 Each look runs only while the scores still name a model, so an answer that is already
@@ -309,9 +310,11 @@ def _explore_weak_motions_one(rec: Recognition, model, memo: dict) -> Recognitio
     from the candidates, can end in one such basin while the true pose lies in another.
     The local test then saw a fixed pose (a black-box probe, stop 33: `recognised`, the
     pose `fixed` and 0.355 off, 7 times its sigma, on an exact mesh; the true pose fits
-    within 1% of its RMS). The poses found
-    (:func:`~meshrec.recognition.weak.weak_motion_starts`, refined on all the points)
-    join the model's; their weights then say whether the pose is one of several. Skipped
+    within 1% of its RMS). The poses found from every start of
+    :func:`~meshrec.recognition.weak.exploration_starts` (the weak motions, the model's
+    near-symmetries, turns about the touch's normal; refined on all the points, those that
+    carry the touch through a thin wall left out) join the model's; their weights then say
+    whether the pose is one of several. Skipped
     where the data leave the pose free or every turn is a symmetry of the model (a
     sphere), as the confirmation is. Returns ``rec`` itself when nothing was explored.
     """
