@@ -100,15 +100,20 @@ def test_recognition_does_not_depend_on_the_order_of_the_models(surfaces):
     for ra, rb in zip(a.ranking, b.ranking, strict=True):
         assert ra.error == rb.error
     # and each entry is the model registered alone (its first stages only, refined, when
-    # the cascade pruned it: meshrec.recognition.cascade)
-    for r in a.ranking:
+    # the cascade pruned it: meshrec.recognition.cascade); the model about to be named may
+    # have more poses from the looks before naming (meshrec.recognition.naming), which
+    # only add poses: its fit is at least as good
+    for k, r in enumerate(a.ranking):
         model = surfaces[r.model]
         if r.pruned:
             coarse = register_coarse(touch, model, geometry=a.geometry)
             alone = pruned_registration(touch, model, coarse)
         else:
             alone = register(touch, model, geometry=a.geometry)
-        assert alone.error == r.error
+        if k == 0 and a.verdict == "recognised":
+            assert r.error <= alone.error
+        else:
+            assert alone.error == r.error
 
 
 # ------------------------------------------------------------------ rms, n_points, poses
