@@ -143,9 +143,9 @@ def near_symmetries(
             # the axis of a part with a hole or a handle leans off the principal one
             fitted = _fitted_axis(angle, axis, through, probe[::2], surface, fraction * diagonal)
             dist_fit = moved_distance(angle, *fitted, probe)
-            a, p = fitted if _spread(dist_fit) < _spread(dist) else (axis, through)
-            dist = dist_fit if _spread(dist_fit) < _spread(dist) else dist
-            spread = _spread(dist)
+            (a, p), spread = (axis, through), _spread(dist)
+            if _spread(dist_fit) < spread:  # the fit kept only where it helps
+                (a, p), dist, spread = fitted, dist_fit, _spread(dist_fit)
             near = float(dist.max()) > exact_tolerance and spread <= fraction * diagonal
             if near and not any(abs(a @ b) > np.cos(np.radians(5.0)) for _, (b, _) in found):
                 found.append((spread, (a, p)))

@@ -342,14 +342,16 @@ def _explore_weak_motions_one(rec: Recognition, model, memo: dict) -> Recognitio
         best=len(starts),
         start_ratio=float("inf"),
     )
-    found = [p for p in found if keeps_side(model, rec.touch, rec.geometry, p.T_model_touch)]
-    reg = _with_more_poses(best, found, rec.touch, rec.geometry)
+    reg = _with_more_poses(best, found, model, rec.touch, rec.geometry)
     return dataclasses.replace(rec, ranking=(reg, *rec.ranking[1:]))
 
 
-def _with_more_poses(reg: Registration, found, touch: TouchData, geometry) -> Registration:
+def _with_more_poses(reg: Registration, found, model, touch: TouchData, geometry) -> Registration:
     """One touch's registration with the poses ``found`` among its own (distinct, least
-    RMS first; a rejected one registered by them)."""
+    RMS first; a rejected one registered by them), but those that carry the touch through
+    the surface where its side is known (:func:`~meshrec.registration.poses.keeps_side`,
+    as the registration's own poses are)."""
+    found = [p for p in found if keeps_side(model, touch, geometry, p.T_model_touch)]
     if not found:
         return reg
     poses = distinct_poses(
@@ -397,8 +399,5 @@ def _transferred(rec: Recognition, models: list, fits: dict, noise: float) -> Re
             ranking.append(fit.registration)
         else:
             found = transferred_poses(rec.touches, model, rec.geometries, seeds, reach)
-            found = [
-                p for p in found if keeps_side(model, rec.touch, rec.geometry, p.T_model_touch)
-            ]
-            ranking.append(_with_more_poses(reg, found, rec.touch, rec.geometry))
+            ranking.append(_with_more_poses(reg, found, model, rec.touch, rec.geometry))
     return dataclasses.replace(rec, ranking=tuple(ranking))
