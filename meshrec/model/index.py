@@ -38,6 +38,7 @@ from meshrec import defaults
 from meshrec.io.checks import check_instance
 from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model_folder
 from meshrec.model.curvature import CurvatureTable
+from meshrec.model.derived import DerivedStore
 from meshrec.model.mesh import MeshData, check_mesh_path, parse_mesh, read_mesh_file
 from meshrec.model.record import RECORD_VERSION, IndexRecord
 from meshrec.model.resolution import Resolution, mesh_resolution
@@ -161,7 +162,9 @@ class ModelIndex:
         Wall time of :meth:`from_file` (reading, hashing, cache load or build, trees).
     resolution : Resolution
         The mesh's resolution against the default touch curve length, computed on first
-        use (not cached on disk; 0.04 to 0.08 s on an 80,000-face model).
+        use (0.04 to 0.08 s on an 80,000-face model) and, for an index loaded by
+        :meth:`from_file` or from a library pack, kept in the cache folder
+        (:mod:`meshrec.model.derived`), as are the two below.
     vertex_scatter : float
         How far the vertices scatter along their normals about a smooth surface (the
         mesh's own error, :mod:`meshrec.model.roughness`), computed on first use.
@@ -218,14 +221,18 @@ class ModelIndex:
     @functools.cached_property
     def resolution(self) -> Resolution:
         """The mesh's resolution (see :func:`meshrec.model.resolution.mesh_resolution`)."""
-        return mesh_resolution(self.mesh, curvature=self.curvature)
+        return self._kept(
+            "resolution", lambda: mesh_resolution(self.mesh, curvature=self.curvature)
+        )
 
     @functools.cached_property
     def vertex_scatter(self) -> float:
         """How far the mesh's vertices scatter along their normals about a smooth surface,
         model units (:func:`meshrec.model.roughness.vertex_scatter`; about 0 for an exact
         mesh, the scanner's noise for a raw scan), computed on first use."""
-        return vertex_scatter(self.mesh, self.curvature.face_patch)
+        return self._kept(
+            "vertex_scatter", lambda: vertex_scatter(self.mesh, self.curvature.face_patch)
+        )
 
     @functools.cached_property
     def symmetry_tolerance(self) -> float:
@@ -242,7 +249,16 @@ class ModelIndex:
     def near_symmetries(self) -> NearSymmetries:
         """The turns that carry the model near itself but are not symmetries of it
         (:func:`meshrec.model.symmetry.near_symmetries`), computed on first use."""
-        return near_symmetries(self.mesh, self.surface, self.symmetry_tolerance)
+        return self._kept(
+            "near_symmetries",
+            lambda: near_symmetries(self.mesh, self.surface, self.symmetry_tolerance),
+        )
+
+    def _kept(self, what: str, compute):
+        """``compute()``, or its value kept on disk by the index's :class:`DerivedStore`
+        (:mod:`meshrec.model.derived`) when it has one."""
+        store = self.__dict__.get("_derived_store")
+        return compute() if store is None else store.kept(what, compute)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -353,6 +369,8 @@ class ModelIndex:
                 surface=surface,
                 build_seconds=build_seconds,
             )
+        store = DerivedStore(cache.directory, digest, dataclasses.asdict(params), p.stem)
+        object.__setattr__(index, "_derived_store", store)
         object.__setattr__(index, "load_seconds", time.perf_counter() - t0)
         return index
 
@@ -363,6 +381,7 @@ class ModelIndex:
         params: IndexParams,
         record: IndexRecord,
         from_cache: bool = False,
+        derived: DerivedStore | None = None,
     ) -> ModelIndex:
         """The index of a cache record (the trees are built here).
 
@@ -375,6 +394,9 @@ class ModelIndex:
         record : IndexRecord
         from_cache : bool
             Whether the record came from the cache.
+        derived : DerivedStore or None
+            Where the index keeps its resolution, vertex scatter and near-symmetries once
+            computed (:mod:`meshrec.model.derived`); None: computed once per process.
 
         Returns
         -------
@@ -383,14 +405,15 @@ class ModelIndex:
         Raises
         ------
         TypeError
-            If ``record`` is not an :class:`IndexRecord` or ``params`` not an
-            :class:`IndexParams`.
+            If ``record`` is not an :class:`IndexRecord`, ``params`` not an
+            :class:`IndexParams` or ``derived`` neither a :class:`DerivedStore` nor None.
         """
         if not isinstance(record, IndexRecord):
             raise TypeError(f"record must be an IndexRecord, got {type(record).__name__}")
+        check_instance(derived, DerivedStore, "derived", optional=True)
         mesh, curvature, surface = record.parts()
         path = Path(path)
-        return cls(
+        index = cls(
             name=path.stem,
             path=path,
             params=params,
@@ -400,6 +423,9 @@ class ModelIndex:
             build_seconds=record.build_seconds,
             from_cache=from_cache,
         )
+        if derived is not None:
+            object.__setattr__(index, "_derived_store", derived)
+        return index
 
     def to_record(self) -> IndexRecord:
         """The cache record of this index.

@@ -38,6 +38,7 @@ import numpy as np
 
 from meshrec._version import __version__
 from meshrec.model.cache import CacheWarning, default_cache_dir, sweep_abandoned
+from meshrec.model.derived import DerivedStore
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import check_mesh_path, read_mesh_file
 from meshrec.model.record import RECORD_VERSION, IndexRecord
@@ -51,11 +52,25 @@ _TOC = "toc.json"
 _PER_VERTEX = ("vertices", "vertex_normals")
 _PER_FACE = ("faces", "edge_bulge", "face_patch")
 _PER_SITE = (
-    "points", "normals", "normals2", "k1", "k2", "dir1", "dir2", "valid",
-    "K_range", "H_range", "crease",
+    "points",
+    "normals",
+    "normals2",
+    "k1",
+    "k2",
+    "dir1",
+    "dir2",
+    "valid",
+    "K_range",
+    "H_range",
+    "crease",
 )
 _SCALARS = (
-    "closed", "scale", "avg_edge", "spacing", "curvature_radius", "range_radius",
+    "closed",
+    "scale",
+    "avg_edge",
+    "spacing",
+    "curvature_radius",
+    "range_radius",
     "build_seconds",
 )
 _CHUNK = 1 << 24
@@ -311,7 +326,7 @@ def load_pack(
     if not (folder / _TOC).is_file():
         return None
     try:
-        models, skipped = _read(folder, key, params)
+        models, skipped = _read(folder, key, params, _stores(files, digests, params, cache_dir))
     except Exception as exc:  # whatever a corrupt pack raises: a miss, rebuilt
         warnings.warn(
             f"library pack {str(folder)!r} is unusable ({type(exc).__name__}: {exc}); "
@@ -330,8 +345,19 @@ def load_pack(
     return models, skipped
 
 
-def _read(folder: Path, key: str, params: IndexParams):
-    """The models and skipped files of the pack in ``folder`` (raises if it is unusable)."""
+def _stores(files, digests, params: IndexParams, cache_dir) -> dict[str, DerivedStore]:
+    """Each file's :class:`DerivedStore` (its derived quantities' entries), by real path."""
+    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    asdict = dataclasses.asdict(params)
+    return {
+        os.path.realpath(p): DerivedStore(directory, d, asdict, Path(p).stem)
+        for p, d in zip(files, digests, strict=True)
+    }
+
+
+def _read(folder: Path, key: str, params: IndexParams, stores: dict[str, DerivedStore]):
+    """The models and skipped files of the pack in ``folder`` (raises if it is unusable);
+    each model gets its file's store from ``stores`` (by real path)."""
     toc = json.loads((folder / _TOC).read_text())
     if toc.get("format") != PACK_FORMAT or toc.get("key") != key:
         raise ValueError("its table of contents belongs to another key or format")
@@ -353,6 +379,9 @@ def _read(folder: Path, key: str, params: IndexParams):
         parts.update({name: arrays[name][f0:f1] for name in _PER_FACE})
         parts.update({name: arrays[name][s0:s1] for name in _PER_SITE})
         record = IndexRecord(**parts, **{name: entry[name] for name in _SCALARS})
-        models.append(ModelIndex.from_record(entry["path"], params, record, from_cache=True))
+        store = stores.get(os.path.realpath(entry["path"]))
+        models.append(
+            ModelIndex.from_record(entry["path"], params, record, from_cache=True, derived=store)
+        )
     skipped = tuple((Path(p), str(r)) for p, r in toc["skipped"])
     return tuple(models), skipped
