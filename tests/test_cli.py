@@ -33,6 +33,7 @@ SCHEMA = {
         "plausible",
         "noise",
         "reason",
+        "search_doubt",
         "warnings",
         "touch",
         "touches",
@@ -67,6 +68,7 @@ SCHEMA = {
         "plausible": {"type": "array", "items": {"type": "string"}},
         "noise": {"type": "number", "exclusiveMinimum": 0},
         "reason": {"type": "string", "minLength": 1},
+        "search_doubt": {"type": "boolean"},
         "warnings": {"type": "array", "items": {"type": "string"}},
         "probe_radius": {"type": "number", "minimum": 0},
         "touch": {

@@ -1,6 +1,7 @@
 """The rough-fit diagnostic: curves that cross an edge are told from curves on one patch."""
 
 import dataclasses
+import json
 import math
 import warnings
 
@@ -134,6 +135,7 @@ def test_a_touch_across_a_rim_that_fits_nothing_blames_the_rim_too(tmp_path, cap
     assert (found.verdict, found.plausible) == ("ambiguous", ("cone",))
     assert rec.verdict == "unknown"
     assert "or its pose was missed" in rec.reason
+    assert rec.search_doubt
     assert "cross an edge or a rim" in rec.reason
     assert any("first pass fitted no model" in w for w in rec.warnings)
     assert any("registered on every site" in w for w in rec.warnings)
@@ -152,6 +154,9 @@ def test_a_touch_across_a_rim_that_fits_nothing_blames_the_rim_too(tmp_path, cap
     last = capsys.readouterr().out.splitlines()[-1]
     assert last.startswith("unknown: ")
     assert "or its pose was missed" in last
+    argv = ["recognize", str(tmp_path / "touch.csv"), "--models", str(folder), "--json"]
+    assert main([*argv, "--cache-dir", str(tmp_path / "cache")]) == 1
+    assert json.loads(capsys.readouterr().out)["search_doubt"] is True
 
 
 def test_a_misfit_across_an_edge_is_not_only_blamed_on_the_library(shapes, tmp_path):
@@ -173,8 +178,10 @@ def test_a_misfit_across_an_edge_is_not_only_blamed_on_the_library(shapes, tmp_p
     assert rough.verdict == "unknown"
     assert "probably not in the library, or its pose was missed" in rough.reason
     assert "cross an edge or a rim" in rough.reason
+    assert rough.search_doubt
     assert smooth.verdict == "unknown"
     assert smooth.reason.endswith("the object is probably not in the library")
+    assert not smooth.search_doubt
 
 
 def test_an_answer_across_an_edge_that_names_no_model_says_the_truth_may_be_missing(
@@ -200,3 +207,4 @@ def test_an_answer_across_an_edge_that_names_no_model_says_the_truth_may_be_miss
     assert set(rec.plausible) == {"box", "tall"}
     assert "the touch crosses a sharp edge" in rec.reason
     assert "the touched model may be missing from these" in rec.reason
+    assert rec.search_doubt

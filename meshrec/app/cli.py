@@ -195,7 +195,8 @@ def recognition_to_json(
     Returns
     -------
     dict
-        Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``, ``warnings``,
+        Keys ``verdict``, ``best``, ``plausible``, ``noise``, ``reason``,
+        ``search_doubt`` (:attr:`Recognition.search_doubt`), ``warnings``,
         ``probe_radius`` (the ball-tip radius the data were compared with the models
         for, models' units; 0 for a point probe), ``touch`` (the first touch),
         ``touches`` (one summary per touch, with ``rms``, its RMS residual at the best
@@ -229,6 +230,7 @@ def recognition_to_json(
         "plausible": list(rec.plausible),
         "noise": float(rec.noise),
         "reason": rec.reason,
+        "search_doubt": bool(rec.search_doubt),
         "warnings": list(dict.fromkeys([*warnings, *rec.warnings])),
         "probe_radius": float(rec.probe_radius),
         "touch": {
@@ -332,10 +334,9 @@ def _print_table(rec: Recognition, top: int | None, out, shown=()) -> None:
         if rec.best is None:
             what = "no model could be registered"
         else:
-            # the reason's own doubt (a touch across an edge or a rim, where the search
+            # the answer's own doubt (a touch across an edge or a rim, where the search
             # may have missed the pose) is kept in the one line a script reads
-            doubt = "its pose was missed" in rec.reason or "may still be in" in rec.reason
-            missed = ", or its pose was missed" if doubt else ""
+            missed = ", or its pose was missed" if rec.search_doubt else ""
             what = f"not in the library{missed} (best fit: {rec.best.model})"
     out.write(f"{rec.verdict}: {what}  ({rec.seconds:.2f} s)\n")
 

@@ -489,6 +489,7 @@ def _with_verdict(
         elif rec.best is not None and rec.best.model in fits:
             v = every_touch_hold(v, rec, fits[rec.best.model], noise)
             reason = v.reason
+        doubt = rough and v.verdict == "unknown"
         if rough and v.verdict == "unknown" and rec.best is not None:
             # A misfit from curves that fit no smooth patch: the search, started from the
             # curvature at p, may have missed the right pose across the edge.
@@ -526,6 +527,7 @@ def _with_verdict(
         noise=float(noise),
         reason=reason,
         warnings=tuple(cautions),
+        search_doubt=doubt,
         scoring_seconds=t_score,
         widened_seconds=t_wide,
         touch_rms=per_touch,
@@ -570,7 +572,7 @@ def _edge_caveat(rec: Recognition, crossed: int) -> Recognition:
         tail = f"{where}: the touched model may be missing from these; touch again away from edges"
     else:
         tail = f"{where}: the object may still be in the library; touch again away from edges"
-    return dataclasses.replace(rec, reason=f"{rec.reason}; {tail}")
+    return dataclasses.replace(rec, reason=f"{rec.reason}; {tail}", search_doubt=True)
 
 
 def _inward_hint(rec: Recognition, reason: str) -> str:

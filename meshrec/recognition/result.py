@@ -88,6 +88,12 @@ class Recognition(ValueEquality):
         without and with it, the linearised drop), whether it warned or not. None when
         the check did not run (a probe radius given or read from the touches, no model
         registered).
+    search_doubt : bool
+        Whether the touch is one where a model's search can miss its pose: one touch
+        across a sharp edge of the best model, or curves that fit no smooth surface patch
+        (across an edge or a rim). Then an ``unknown`` answer's object may still be in
+        the library, and an ``ambiguous`` answer's touched model may be missing from
+        ``plausible``; ``reason`` says which. Never True for ``recognised``.
     phase_times : PhaseTimes
         CPU seconds of each phase of the recognition (``time.process_time``; see
         :class:`~meshrec.recognition.phases.PhaseTimes`). Not part of the equality of two
@@ -112,6 +118,7 @@ class Recognition(ValueEquality):
     probe_radius: float = 0.0
     pose_freedom: PoseFreedom | None = None
     probe_offset: ProbeOffset | None = None
+    search_doubt: bool = False
     phase_times: PhaseTimes = dataclasses.field(default_factory=PhaseTimes, compare=False)
 
     @property
