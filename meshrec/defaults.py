@@ -430,6 +430,20 @@ MESH_MERGE_FRACTION = 1e-8
 #: from the origin when its steps exceed this fraction of the median edge: a float32 STL
 #: at 1e6 (steps 0.06) lost 78% of a fine ellipsoid's faces without a word.
 MESH_LOST_FACES_WARN = 0.01
+#: A mesh whose coordinates are all single precision (an STL stores float32) and whose
+#: steps at its largest coordinate exceed this fraction of its median edge gets a
+#: MeshWarning even when few faces collapse: the surface is staircased, its faces tilted
+#: by up to about that many radians (a black-box probe, stop 36: a YCB scan moved 1e4 m
+#: from the origin had steps of 0.98 mm, 37% of its 2.6 mm median edge; 0.7% of its faces
+#: collapsed, below MESH_LOST_FACES_WARN, and answers went wrong without a word). At 5%,
+#: that scan 1e3 m out (steps 0.061 mm, 2.3%) is not warned about.
+MESH_QUANTUM_WARN = 0.05
+#: A model whose size (bounding-box diagonal) is more than this many times the median of
+#: the other models' in its folder, or less than its inverse, gets a LibraryWarning: in
+#: other units, most likely (mm among m: 1,000 times; a black-box probe, stop 36, put a
+#: YCB scan in mm among scans in m, and it never fitted, without a word). 200 leaves a
+#: 10 mm screw beside a 1.5 m frame alone.
+LIBRARY_SIZE_RATIO_WARN = 200.0
 
 # --- touch quality -------------------------------------------------------------------------
 #: Warn (RoughFitWarning) when the curve fits leave more than this many times the noise the

@@ -445,3 +445,26 @@ def test_faces_collapsed_by_single_precision_far_from_the_origin_warn(tmp_path):
     ):
         _, faces = load_mesh(tmp_path / "far.stl")
     assert len(faces) < 10000
+
+
+def test_single_precision_steps_coarse_against_the_edges_are_warned_about(tmp_path):
+    # A black-box probe (stop 36): a YCB scan saved as STL 1e4 m from the origin had
+    # coordinate steps of 0.98 mm, 37% of its median edge; only 0.7% of its faces
+    # collapsed (under MESH_LOST_FACES_WARN), and wrong answers came without a word. The
+    # steps are now said whenever they pass MESH_QUANTUM_WARN of the median edge.
+    from meshrec.model.mesh import MeshWarning, load_mesh
+
+    egg = trimesh.creation.icosphere(subdivisions=4)
+    egg.apply_scale([1.0, 0.8, 0.6])
+    egg.export(tmp_path / "near.stl")
+    egg.apply_translation([1.5e5, -1.5e5, 7.5e4])  # steps of 0.0156, edges about 0.06
+    egg.export(tmp_path / "far.stl")
+    egg.export(tmp_path / "far.obj")  # the same coordinates in double precision
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_mesh(tmp_path / "near.stl")
+        load_mesh(tmp_path / "far.obj")
+    with pytest.warns(MeshWarning, match=r"far\.stl'?: its coordinates are single precision"):
+        load_mesh(tmp_path / "far.stl")
+    with pytest.warns(MeshWarning, match=r"steps are 0\.0156, \d+% of its median edge"):
+        load_mesh(tmp_path / "far.stl")

@@ -198,3 +198,20 @@ def test_models_lists_what_a_library_would_skip(env, tmp_path):
     reasons = {s["file"]: s["reason"] for s in doc["skipped"]}
     assert set(reasons) == {"a.stl", "broken.stl"}
     assert reasons["a.stl"] == "duplicate model name 'a'"
+
+
+def test_models_flags_a_model_in_other_units(env, tmp_path):
+    folder = tmp_path / "mixed_units"
+    folder.mkdir()
+    trimesh.creation.box(extents=[0.2, 0.1, 0.3]).export(folder / "block_m.stl")
+    trimesh.creation.box(extents=[0.1, 0.1, 0.1]).export(folder / "cube_m.stl")
+    trimesh.creation.box(extents=[200.0, 100.0, 300.0]).export(folder / "block_mm.stl")
+    proc = _run(["models", str(folder), "--json"], env, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    ratios = {m["name"]: m["size_ratio"] for m in json.loads(proc.stdout)["models"]}
+    assert ratios["block_m"] is None
+    assert ratios["cube_m"] is None
+    assert ratios["block_mm"] == pytest.approx(1000.0)  # against block_m, the median
+    text = _run(["models", str(folder)], env, tmp_path).stdout
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("block_mm")]
+    assert line.endswith("x the median: other units?")

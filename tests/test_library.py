@@ -207,3 +207,38 @@ def test_a_folder_whose_models_are_one_level_down_says_so(tmp_path):
         r"sub-folders are not searched: give one as the folder",
     ):
         ModelLibrary.from_folder(top, cache_dir=tmp_path / "cache")
+
+
+def test_size_outliers_flag_a_model_in_other_units():
+    from meshrec.model.library import size_outliers
+
+    # YCB-like scans in m and one in mm (the probe's case): only it, 1,110 times larger
+    (k, ratio), *rest = size_outliers([0.2, 0.25, 0.15, 0.28, 222.0])
+    assert (k, rest) == (4, [])
+    assert ratio == pytest.approx(222.0 / 0.25)
+    # two models 1,000 times apart: each is flagged against the other
+    assert size_outliers([1.0, 1000.0]) == [(0, 0.001), (1, 1000.0)]
+    # a 10 mm screw beside a 1.5 m frame (150 times) is left alone, as is a lone model
+    assert size_outliers([0.01, 1.5, 0.4]) == []
+    assert size_outliers([5.0]) == []
+    for bad in ([1.0, 0.0], [1.0, float("nan")], [-1.0, 2.0]):
+        with pytest.raises(ValueError, match="sizes must be positive finite numbers"):
+            size_outliers(bad)
+
+
+def test_a_model_in_other_units_is_warned_about_on_loading(tmp_path):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for k, scale in enumerate([1.0, 1.3, 0.8]):
+        egg = trimesh.creation.icosphere(subdivisions=3)
+        egg.apply_scale([scale, 0.8, 0.6])
+        egg.export(folder / f"egg{k}.stl")
+    big = trimesh.creation.icosphere(subdivisions=3)
+    big.apply_scale(1000.0)
+    big.export(folder / "ball_mm.stl")
+    with pytest.warns(LibraryWarning, match=r"'ball_mm' \(size 3464\) is 1.*times larger"):
+        ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")
+    (folder / "ball_mm.stl").unlink()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ModelLibrary.from_folder(folder, cache_dir=tmp_path / "cache")

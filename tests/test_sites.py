@@ -136,3 +136,33 @@ def test_patches_crossed_counts_patches_holding_enough_points(tmp_path):
     assert patches_crossed(box, np.vstack([top, side[:1]])) == 1  # one stray point
     with pytest.raises(ValueError, match=r"points must have shape \(n, 3\)"):
         patches_crossed(box, np.zeros((2, 2)))
+
+
+def test_no_site_on_a_fold(tmp_path):
+    """Faces folded back onto their neighbour (normals opposite: a mesh whose coordinates
+    were rounded, such as a float32 STL far from the origin) have no bisector: no crease
+    site there. Before stop 36 each fold edge got sites whose normal was the rounding's
+    direction, or zero, which made the lookup's frames NaN (a black-box probe's YCB scan
+    1e4 m from the origin: `recognize` raised "points must be finite")."""
+    n = 21
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    V = np.c_[x.ravel(), y.ravel(), (0.1 * np.sin(3 * x) * np.cos(2 * y)).ravel()]
+    F = []
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a = i * n + j
+            F += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    flaps = []
+    for j in range(2, 18, 3):  # a flap on the boundary edge (j, j + 1), folded onto its face
+        V = np.vstack([V, V[[j, j + 1, j + n + 1]].mean(axis=0)])
+        flaps.append([j + 1, j, len(V) - 1])
+    trimesh.Trimesh(V, np.vstack([F, flaps]), process=False).export(tmp_path / "sheet.obj")
+    plain = trimesh.Trimesh(V[: n * n], np.array(F), process=False)
+    plain.export(tmp_path / "plain.obj")
+    folded = ModelIndex.from_file(tmp_path / "sheet.obj", cache_dir=tmp_path / "cache")
+    flat = ModelIndex.from_file(tmp_path / "plain.obj", cache_dir=tmp_path / "cache")
+    assert len(folded.mesh.faces) == len(flat.mesh.faces) + len(flaps)
+    for model in (folded, flat):
+        table = model.curvature
+        assert not table.crease.any()  # a smooth sheet: its only sharp edges were the folds
+        np.testing.assert_allclose(np.linalg.norm(table.normals, axis=1), 1.0, atol=1e-12)

@@ -9,7 +9,12 @@ import igl
 import numpy as np
 
 from meshrec.app.inputs import model_folder, model_units
-from meshrec.model.library import bundled_model_sets, bundled_models_dir, folder_mesh_files
+from meshrec.model.library import (
+    bundled_model_sets,
+    bundled_models_dir,
+    folder_mesh_files,
+    size_outliers,
+)
 from meshrec.model.mesh import MeshData, load_mesh
 from meshrec.model.resolution import mesh_resolution
 from meshrec.recognition.units import read_units_note
@@ -42,9 +47,11 @@ def list_folder(folder: Path, units: str | None) -> dict:
     dict
         ``{"folder", "units", "models": [{"name", "file", "faces", "vertices", "size",
         "mean_edge", "vertices_per_curve", "curved_fraction", "chord_error",
-        "sliver_fraction", "too_coarse", "coarse_reasons"}], "skipped": [{"file",
-        "reason"}]}``; ``size`` is the bounding-box diagonal and ``mean_edge`` the mean
-        edge length, in the models' units; the resolution fields are those of
+        "sliver_fraction", "too_coarse", "coarse_reasons", "size_ratio"}], "skipped":
+        [{"file", "reason"}]}``; ``size`` is the bounding-box diagonal and ``mean_edge`` the
+        mean edge length, in the models' units; ``size_ratio`` the size over the folder's
+        median where :func:`meshrec.model.library.size_outliers` flags it (other
+        units?), else None; the resolution fields are those of
         :func:`meshrec.model.resolution.mesh_resolution` (default curve length).
 
     Raises
@@ -82,6 +89,9 @@ def list_folder(folder: Path, units: str | None) -> dict:
                 "coarse_reasons": list(res.reasons),
             }
         )
+    ratios = dict(size_outliers([m["size"] for m in models]))
+    for k, m in enumerate(models):
+        m["size_ratio"] = ratios.get(k)
     return {"folder": str(folder), "units": units, "models": models, "skipped": bad}
 
 
@@ -110,6 +120,8 @@ def run_models(args, out) -> int:
     )
     for m in doc["models"]:
         flag = "  too coarse" if m["too_coarse"] else ""
+        if m["size_ratio"] is not None:
+            flag += f"  size {m['size_ratio']:.3g} x the median: other units?"
         out.write(
             f"{m['name']:<24} {m['faces']:>8} {m['vertices']:>9} {m['size']:>10.4g} "
             f"{m['mean_edge']:>10.4g} {m['vertices_per_curve']:>9.3g}{flag}\n"

@@ -8,12 +8,21 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from meshrec import defaults
 from meshrec.io.checks import check_instance
 from meshrec.model.cache import default_cache_dir, refuse_model_folder
 from meshrec.model.index import IndexParams, ModelIndex
 from meshrec.model.mesh import MESH_SUFFIXES, is_mesh_file
 
-__all__ = ["LibraryWarning", "ModelLibrary", "ProgressCallback", "bundled_models_dir"]
+__all__ = [
+    "LibraryWarning",
+    "ModelLibrary",
+    "ProgressCallback",
+    "bundled_models_dir",
+    "size_outliers",
+]
 
 #: ``progress(i, n, name)``: called before model ``i`` (0-based) of ``n`` is indexed, and
 #: again as each stage of a build starts, with ``name`` then "NAME (stage)".
@@ -239,6 +248,9 @@ class ModelLibrary:
             warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=4)
         for message in unusable:
             warnings.warn(message, LibraryWarning, stacklevel=4)
+        sizes = [float(np.linalg.norm(np.ptp(m.mesh.vertices, axis=0))) for m in models]
+        for k, ratio in size_outliers(sizes):
+            warnings.warn(_size_note(models[k].name, sizes[k], ratio), LibraryWarning, stacklevel=4)
         ordered = tuple(sorted(models, key=lambda m: m.name))
         cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
         return cls(folder=folder, models=ordered, skipped=tuple(skipped), cache_dir=cache)
@@ -281,6 +293,55 @@ class ModelLibrary:
     def __repr__(self) -> str:
         where = str(self.folder) if self.folder is not None else "files"
         return f"ModelLibrary({where!r}, models={list(self.names)}, skipped={len(self.skipped)})"
+
+
+def size_outliers(sizes) -> list[tuple[int, float]]:
+    """The models whose size is far from the others': in other units, most likely.
+
+    A folder's models are taken in one unit; a model exported in millimetres among models
+    in metres is a thousand times larger than the rest, and silently never fits a touch
+    (a black-box probe, stop 36).
+
+    Parameters
+    ----------
+    sizes : sequence of float
+        Each model's size (its bounding box's diagonal), one unit.
+
+    Returns
+    -------
+    list of (int, float)
+        ``(index, ratio)`` for each model whose size is more than
+        ``defaults.LIBRARY_SIZE_RATIO_WARN`` times the median of every model's (ratio above
+        1), or less than its inverse (ratio below 1); of two models, each is compared
+        with the other. In the order given; empty for fewer than two models.
+
+    Raises
+    ------
+    ValueError
+        If a size is not a positive finite number.
+    """
+    a = np.asarray(sizes, dtype=np.float64).reshape(-1)
+    if not (np.isfinite(a).all() and (a > 0).all()):
+        raise ValueError(f"sizes must be positive finite numbers, got {a.tolist()!r}")
+    if len(a) < 2:
+        return []
+    # against the median of all (robust to the odd one out from three models on), or of
+    # two models, each against the other
+    ref = a[::-1] if len(a) == 2 else np.full(len(a), np.median(a))
+    limit = defaults.LIBRARY_SIZE_RATIO_WARN
+    ratios = a / ref
+    return [(k, float(r)) for k, r in enumerate(ratios) if r > limit or r < 1.0 / limit]
+
+
+def _size_note(name: str, size: float, ratio: float) -> str:
+    """The warning of one :func:`size_outliers` model."""
+    how = f"{ratio:.3g} times larger" if ratio > 1 else f"{1.0 / ratio:.3g} times smaller"
+    return (
+        f"model {name!r} (size {size:.4g}) is {how} than the median of the folder's models: "
+        "every model of a folder is taken in one unit, and a model in other units (mm among "
+        "m: 1,000 times) never fits a touch of the object; convert it if so (more than "
+        f"defaults.LIBRARY_SIZE_RATIO_WARN = {defaults.LIBRARY_SIZE_RATIO_WARN:g} times)"
+    )
 
 
 def folder_mesh_files(

@@ -358,9 +358,7 @@ def parse_mesh(data: bytes, path: str | os.PathLike) -> tuple[np.ndarray, np.nda
     extra = {"skip_materials": True} if suffix == ".obj" else {}
     trimesh = trimesh_module()
     try:
-        loaded = trimesh.load(
-            io.BytesIO(data), file_type=suffix[1:], process=False, **extra
-        )
+        loaded = trimesh.load(io.BytesIO(data), file_type=suffix[1:], process=False, **extra)
         if isinstance(loaded, trimesh.Scene):  # several objects: one mesh
             clouds = [g for g in loaded.geometry.values() if isinstance(g, trimesh.PointCloud)]
             if clouds and len(clouds) == len(loaded.geometry):
@@ -421,21 +419,36 @@ def _warn_degenerate(where, n_read, degenerate, vertices, faces) -> None:
     and are not counted), naming single precision far from the origin when that is the
     cause: the cleaned vertices (coordinates as read) are all float32 (an STL stores
     float32) and their step at the largest coordinate exceeds that fraction of the median
-    edge (at 1e6 the steps are 0.06, and finer faces collapse)."""
-    if not degenerate > defaults.MESH_LOST_FACES_WARN * n_read:
-        return
-    text = f"{where}: {degenerate} of its {n_read} faces have no area (degenerate) and are dropped"
+    edge (at 1e6 the steps are 0.06, and finer faces collapse). Without such a loss, a
+    MeshWarning all the same when that step exceeds ``defaults.MESH_QUANTUM_WARN`` of the
+    median edge: the surface is staircased."""
     extent = float(np.abs(vertices).max())
     single = np.array_equal(vertices.astype(np.float32).astype(np.float64), vertices)
     step = float(np.spacing(np.float32(extent)))
     edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
-    if single and step > defaults.MESH_LOST_FACES_WARN * float(np.median(edges)):
-        text += (
-            f"; its coordinates are single precision (as STL stores them) and reach "
-            f"{extent:.3g}, where their steps are {step:.3g}: finer faces collapse. Export "
-            "the model nearer the origin, or in double precision (OBJ)"
+    median = float(np.median(edges))
+    precision = (
+        f"its coordinates are single precision (as STL stores them) and reach {extent:.3g}, "
+        f"where their steps are {step:.3g}"
+    )
+    advice = "Export the model nearer the origin, or in double precision (OBJ)"
+    if degenerate > defaults.MESH_LOST_FACES_WARN * n_read:
+        text = (
+            f"{where}: {degenerate} of its {n_read} faces have no area (degenerate) and are dropped"
         )
-    warnings.warn(text, MeshWarning, stacklevel=3)
+        if single and step > defaults.MESH_LOST_FACES_WARN * median:
+            text += f"; {precision}: finer faces collapse. {advice}"
+        warnings.warn(text, MeshWarning, stacklevel=3)
+    elif single and step > defaults.MESH_QUANTUM_WARN * median:
+        warnings.warn(
+            f"{where}: {precision}, {100 * step / median:.2g}% of its median edge "
+            f"({median:.3g}; more than defaults.MESH_QUANTUM_WARN = "
+            f"{defaults.MESH_QUANTUM_WARN:g}): the surface is staircased by them, its faces "
+            f"tilted and some collapsed ({degenerate} of {n_read} dropped), and the "
+            f"recognition is less reliable. {advice}",
+            MeshWarning,
+            stacklevel=3,
+        )
 
 
 def _obj_face_problem(data: bytes) -> str | None:

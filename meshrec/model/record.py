@@ -23,8 +23,9 @@ __all__ = ["RECORD_VERSION", "IndexRecord"]
 
 #: Part of the cache key: bumped when the record's arrays, or how they are computed,
 #: change (1: the record of the split index, same arrays as cache format 3; 2: the
-#: curvature table at sites on the smooth surface, issue 13).
-RECORD_VERSION = 2
+#: curvature table at sites on the smooth surface, issue 13; 3: no site where the normals
+#: cancel, on a fold or a zero-length edge, stop 36).
+RECORD_VERSION = 3
 
 _MESH = ("vertices", "faces", "vertex_normals", "edge_bulge")
 _SITES = (

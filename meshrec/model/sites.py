@@ -153,7 +153,10 @@ def sample_sites(
     else:
         corner = igl.per_corner_normals(V, F, float(crease_angle_deg)).reshape(-1, 3, 3)
     w = _barycentric(V, F, pts, face)
-    normals = _unit(np.einsum("ni,nij->nj", w, corner[face]))
+    blended = np.einsum("ni,nij->nj", w, corner[face])
+    # corner normals that cancel (a fold) leave no normal: no site there
+    ok = np.linalg.norm(blended, axis=1) > _FOLD
+    pts, face, normals = pts[ok], face[ok], _unit(blended[ok])
     lift = surface.smooth_offsets(pts * unit, face) / unit
     pts = pts + lift[:, None] * mesh.face_normals[face]
     patch = face_patch[face]
@@ -198,6 +201,12 @@ def sample_sites(
         crease=crease,
         face_patch=face_patch,
     )
+
+
+#: Normals that sum (or blend, with weights summing to 1) to less than this length cancel:
+#: a fold of the mesh, its faces back to back (within 2e-4 degrees), where a site has no
+#: normal.
+_FOLD = 1e-6
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -338,9 +347,15 @@ def _crease_sites(tm: trimesh.Trimesh, sharp: np.ndarray, spacing: float, radius
     normal = _unit(n1 + n2)
     along = _unit((b - a)[row])
     across = _unit(np.cross(along, normal))
+    # A fold (two faces back to back, their normals opposite: a mesh whose coordinates
+    # were rounded, such as a float32 STL far from the origin) has no bisector (zero, or
+    # the rounding's direction), and a zero-length edge no direction: no site there (a
+    # zero normal made the lookup's frames NaN, and a black-box probe's recognition
+    # raise, stop 36).
+    ok = (np.linalg.norm(n1 + n2, axis=1) > _FOLD) & along.any(axis=1) & across.any(axis=1)
     sign = np.where(convex[row], 1.0, -1.0)
     k = sign * angle[row] / radius
-    return points, normal, n1, across, along, k
+    return points[ok], normal[ok], n1[ok], across[ok], along[ok], k[ok]
 
 
 def _ranges(K, H, pairs, use, radius):
