@@ -215,3 +215,22 @@ def test_models_flags_a_model_in_other_units(env, tmp_path):
     text = _run(["models", str(folder)], env, tmp_path).stdout
     (line,) = [ln for ln in text.splitlines() if ln.startswith("block_mm")]
     assert line.endswith("x the median: other units?")
+
+
+def test_models_flags_an_open_mesh(env, tmp_path):
+    # A black-box probe (stop 36) cut a hole where its touch landed: the touch then fit
+    # a near-twin place elsewhere, and nothing had said the model was open.
+    folder = tmp_path / "open"
+    folder.mkdir()
+    ball = trimesh.creation.icosphere(subdivisions=2)  # 320 faces, 480 edges
+    ball.export(folder / "closed.stl")
+    cut = trimesh.Trimesh(ball.vertices, ball.faces[1:], process=False)  # one face removed
+    cut.export(folder / "holed.stl")
+    doc = json.loads(_run(["models", str(folder), "--json"], env, tmp_path).stdout)
+    edges = {m["name"]: m["boundary_edges"] for m in doc["models"]}
+    assert edges == {"closed": 0, "holed": 3}
+    text = _run(["models", str(folder)], env, tmp_path).stdout
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("holed")]
+    assert line.endswith("open (3 boundary edges)")
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("closed")]
+    assert "open" not in line

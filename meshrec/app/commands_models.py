@@ -47,11 +47,14 @@ def list_folder(folder: Path, units: str | None) -> dict:
     dict
         ``{"folder", "units", "models": [{"name", "file", "faces", "vertices", "size",
         "mean_edge", "vertices_per_curve", "curved_fraction", "chord_error",
-        "sliver_fraction", "too_coarse", "coarse_reasons", "size_ratio"}], "skipped":
-        [{"file", "reason"}]}``; ``size`` is the bounding-box diagonal and ``mean_edge`` the
-        mean edge length, in the models' units; ``size_ratio`` the size over the folder's
-        median where :func:`meshrec.model.library.size_outliers` flags it (other
-        units?), else None; the resolution fields are those of
+        "sliver_fraction", "too_coarse", "coarse_reasons", "size_ratio",
+        "boundary_edges"}], "skipped": [{"file", "reason"}]}``; ``size`` is the
+        bounding-box diagonal and ``mean_edge`` the mean edge length, in the models'
+        units; ``size_ratio`` the size over the folder's median where
+        :func:`meshrec.model.library.size_outliers` flags it (other units?), else None;
+        ``boundary_edges`` the edges of one face only (0: closed; else holes, or parts the
+        mesh lacks, where a touch can fit elsewhere as well); the resolution fields are
+        those of
         :func:`meshrec.model.resolution.mesh_resolution` (default curve length).
 
     Raises
@@ -73,6 +76,9 @@ def list_folder(folder: Path, units: str | None) -> dict:
             continue
         seen.add(path.stem)
         res = mesh_resolution(MeshData.from_arrays(V, F))
+        # edges of one face only: holes, or parts the scan or export lacks
+        edges = np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, uses = np.unique(edges, axis=0, return_counts=True)
         models.append(
             {
                 "name": path.stem,
@@ -87,6 +93,7 @@ def list_folder(folder: Path, units: str | None) -> dict:
                 "sliver_fraction": res.sliver_fraction,
                 "too_coarse": res.too_coarse,
                 "coarse_reasons": list(res.reasons),
+                "boundary_edges": int(np.count_nonzero(uses == 1)),
             }
         )
     ratios = dict(size_outliers([m["size"] for m in models]))
@@ -120,6 +127,8 @@ def run_models(args, out) -> int:
     )
     for m in doc["models"]:
         flag = "  too coarse" if m["too_coarse"] else ""
+        if m["boundary_edges"]:
+            flag += f"  open ({m['boundary_edges']} boundary edges)"
         if m["size_ratio"] is not None:
             flag += f"  size {m['size_ratio']:.3g} x the median: other units?"
         out.write(
