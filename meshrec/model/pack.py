@@ -52,25 +52,11 @@ _TOC = "toc.json"
 _PER_VERTEX = ("vertices", "vertex_normals")
 _PER_FACE = ("faces", "edge_bulge", "face_patch")
 _PER_SITE = (
-    "points",
-    "normals",
-    "normals2",
-    "k1",
-    "k2",
-    "dir1",
-    "dir2",
-    "valid",
-    "K_range",
-    "H_range",
-    "crease",
+    "points", "normals", "normals2", "k1", "k2", "dir1", "dir2", "valid",
+    "K_range", "H_range", "crease",
 )
 _SCALARS = (
-    "closed",
-    "scale",
-    "avg_edge",
-    "spacing",
-    "curvature_radius",
-    "range_radius",
+    "closed", "scale", "avg_edge", "spacing", "curvature_radius", "range_radius",
     "build_seconds",
 )
 _CHUNK = 1 << 24
