@@ -248,7 +248,9 @@ class ModelLibrary:
             warnings.warn(f"skipping {str(path)!r}: {reason}", LibraryWarning, stacklevel=4)
         for message in unusable:
             warnings.warn(message, LibraryWarning, stacklevel=4)
-        sizes = [float(np.linalg.norm(np.ptp(m.mesh.vertices, axis=0))) for m in models]
+        # the square root of the area, stored with the mesh (a packed library's vertices
+        # stay on disk until used)
+        sizes = [float(m.mesh.scale) for m in models]
         for k, ratio in size_outliers(sizes):
             warnings.warn(_size_note(models[k].name, sizes[k], ratio), LibraryWarning, stacklevel=4)
         ordered = tuple(sorted(models, key=lambda m: m.name))
@@ -305,7 +307,8 @@ def size_outliers(sizes) -> list[tuple[int, float]]:
     Parameters
     ----------
     sizes : sequence of float
-        Each model's size (its bounding box's diagonal), one unit.
+        Each model's size (its bounding box's diagonal, or the square root of its area),
+        in one unit.
 
     Returns
     -------
@@ -337,7 +340,8 @@ def _size_note(name: str, size: float, ratio: float) -> str:
     """The warning of one :func:`size_outliers` model."""
     how = f"{ratio:.3g} times larger" if ratio > 1 else f"{1.0 / ratio:.3g} times smaller"
     return (
-        f"model {name!r} (size {size:.4g}) is {how} than the median of the folder's models: "
+        f"model {name!r} (size {size:.4g}, the square root of its area) is {how} than the "
+        "median of the folder's models: "
         "every model of a folder is taken in one unit, and a model in other units (mm among "
         "m: 1,000 times) never fits a touch of the object; convert it if so (more than "
         f"defaults.LIBRARY_SIZE_RATIO_WARN = {defaults.LIBRARY_SIZE_RATIO_WARN:g} times)"
