@@ -47,8 +47,12 @@ def test_below_the_threshold_every_model_is_registered_again(surfaces, monkeypat
     assert rec.phase_times.widened > 0.0
     after = {r.model: r for r in rec.ranking}
     for before in first.ranking:
-        # every model keeps its better fit: none fits worse than on the first pass
-        assert before.rejected or after[before.model].error <= before.error
+        # every model keeps its better fit: none fits worse than on the first pass (up to
+        # a millionth: the widened pass keeps the pose of less mean distance, `error`, the
+        # looks before naming the one of less RMS, and two poses of one basin can differ
+        # in the other measure by 1e-8 of it)
+        assert before.rejected or after[before.model].error <= before.error * (1 + 1e-6)
+        assert before.rejected or after[before.model].rms <= before.rms * (1 + 1e-6)
 
 
 def test_an_unknown_or_ambiguous_answer_pays_nothing(surfaces, monkeypatch):
