@@ -36,7 +36,7 @@ from meshrec.model.cache import ArrayCache, CacheWarning, make_key
 from meshrec.model.resolution import Resolution
 from meshrec.model.symmetry import NearSymmetries
 
-__all__ = ["DERIVED_VERSION", "DerivedStore", "defaults_digest"]
+__all__ = ["DERIVED_VERSION", "KINDS", "DerivedStore", "defaults_digest"]
 
 #: Bumped when what an entry holds, or how it is encoded, changes.
 DERIVED_VERSION = 1
@@ -171,7 +171,8 @@ class DerivedStore:
 
         Returns
         -------
-        The value, equal to ``compute()``'s bit for bit.
+        Resolution or float or NearSymmetries
+            The value, equal to ``compute()``'s bit for bit.
 
         Raises
         ------
