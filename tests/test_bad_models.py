@@ -468,3 +468,33 @@ def test_single_precision_steps_coarse_against_the_edges_are_warned_about(tmp_pa
         load_mesh(tmp_path / "far.stl")
     with pytest.warns(MeshWarning, match=r"steps are 0\.0156, \d+% of its median edge"):
         load_mesh(tmp_path / "far.stl")
+
+
+def test_mesh_warnings_are_said_again_from_the_cache_and_the_pack(tmp_path):
+    # A warning said only when the index is built is easily missed (a setup script built
+    # the cache; the robot's process loads it): each cached load says it again.
+    from meshrec.model.index import ModelIndex
+    from meshrec.model.library import ModelLibrary
+    from meshrec.model.mesh import MeshWarning
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    egg = trimesh.creation.icosphere(subdivisions=4)
+    egg.apply_scale([1.0, 0.8, 0.6])
+    egg.apply_translation([1.5e5, -1.5e5, 7.5e4])  # steps of 0.0156 (see above)
+    egg.export(folder / "far.stl")
+    trimesh.creation.icosphere(subdivisions=3).export(folder / "ball.stl")
+    cache = tmp_path / "cache"
+    for what in ("built", "cached"):
+        with pytest.warns(MeshWarning, match="single precision") as said:
+            model = ModelIndex.from_file(folder / "far.stl", cache_dir=cache)
+        assert model.from_cache is (what == "cached")
+        assert len([w for w in said if issubclass(w.category, MeshWarning)]) == 1
+        assert model.mesh_warnings == (str(said[0].message),)
+        assert model.to_record().mesh_warnings == model.mesh_warnings
+    ModelLibrary.from_folder(folder, cache_dir=cache)  # writes the pack
+    with pytest.warns(MeshWarning, match="far.stl.*single precision"):
+        packed = ModelLibrary.from_folder(folder, cache_dir=cache)
+    assert (cache / "packs").is_dir()
+    assert packed["far"].mesh_warnings == model.mesh_warnings
+    assert packed["ball"].mesh_warnings == ()

@@ -622,6 +622,15 @@ def test_record_checks_shapes(sphere_index):
         IndexRecord.from_arrays({k: v for k, v in arrays.items() if k != "valid"})
     with pytest.raises(ValueError, match=r"scale must be a single number, got float64 \(2,\)"):
         IndexRecord.from_arrays({**arrays, "scale": np.zeros(2)})
+    for bad in ("one text", ["a", 3]):
+        with pytest.raises(ValueError, match="mesh_warnings must be a sequence of str"):
+            IndexRecord(**{**base, "mesh_warnings": bad})
+    for bad in ("not json", '{"a": 1}'):
+        with pytest.raises(ValueError, match="mesh_warnings must be a JSON list of str"):
+            IndexRecord.from_arrays({**arrays, "mesh_warnings": np.array(bad)})
+    said = ("a warning", "another, with 'quotes'")
+    back = IndexRecord.from_arrays(IndexRecord(**{**base, "mesh_warnings": said}).to_arrays())
+    assert back.mesh_warnings == said
     copy = ModelIndex.from_record(sphere_index.path, sphere_index.params, IndexRecord(**base))
     box = (0.25, 0.5, 0.01, 0.01)
     assert np.array_equal(copy.curvature.lookup(*box), sphere_index.curvature.lookup(*box))

@@ -39,7 +39,13 @@ from meshrec.io.checks import check_instance
 from meshrec.model.cache import ArrayCache, CacheWarning, make_key, refuse_model_folder
 from meshrec.model.curvature import CurvatureTable
 from meshrec.model.derived import DerivedStore
-from meshrec.model.mesh import MeshData, check_mesh_path, parse_mesh, read_mesh_file
+from meshrec.model.mesh import (
+    MeshData,
+    MeshWarning,
+    check_mesh_path,
+    parse_mesh,
+    read_mesh_file,
+)
 from meshrec.model.record import RECORD_VERSION, IndexRecord
 from meshrec.model.resolution import Resolution, mesh_resolution
 from meshrec.model.roughness import vertex_scatter
@@ -160,6 +166,10 @@ class ModelIndex:
         Whether it came from the on-disk cache.
     load_seconds : float
         Wall time of :meth:`from_file` (reading, hashing, cache load or build, trees).
+    mesh_warnings : tuple of str
+        The :class:`~meshrec.model.mesh.MeshWarning` texts that loading the mesh gave when
+        the index was built; an index loaded from the cache (or a library pack) warns them
+        again, so that they are not said only once.
     resolution : Resolution
         The mesh's resolution against the default touch curve length, computed on first
         use (0.04 to 0.08 s on an 80,000-face model) and, for an index loaded by
@@ -191,6 +201,7 @@ class ModelIndex:
     build_seconds: float = 0.0
     from_cache: bool = False
     load_seconds: float = 0.0
+    mesh_warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "path", Path(self.path))
@@ -305,6 +316,9 @@ class ModelIndex:
         -----
         CacheWarning
             If a cache entry is unusable (it is rebuilt) or cannot be written.
+        MeshWarning
+            What loading the mesh warned of (degenerate faces, single-precision steps),
+            when it is built and again whenever it is loaded from the cache.
         """
         t0 = time.perf_counter()
         check_instance(path, (str, os.PathLike), "path")
@@ -330,6 +344,8 @@ class ModelIndex:
                 try:
                     record = IndexRecord.from_arrays(arrays)
                     index = cls.from_record(p, params, record, from_cache=True)
+                    for text in record.mesh_warnings:
+                        warnings.warn(text, MeshWarning, stacklevel=2)
                 except ValueError as exc:
                     warnings.warn(
                         f"cache entry for {str(p)!r} is inconsistent ({exc}); rebuilding",
@@ -340,7 +356,14 @@ class ModelIndex:
             say = stage if stage is not None else (lambda what: None)
             say("loading the mesh")
             t_build = time.perf_counter()
-            vertices, faces = parse_mesh(data, p)
+            # the mesh's own warnings are kept in the record and said again on every
+            # cached load (a warning said only on the first build is easily missed)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                vertices, faces = parse_mesh(data, p)
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            said = tuple(str(w.message) for w in caught if issubclass(w.category, MeshWarning))
             data = None  # the bytes of a large STL are large: not kept through the build
             mesh = MeshData.from_arrays(vertices, faces)
             bulge = edge_bulges(mesh, params.crease_angle_deg)
@@ -357,7 +380,7 @@ class ModelIndex:
             )
             build_seconds = time.perf_counter() - t_build
             say("writing the cache")
-            record = IndexRecord.from_parts(mesh, curvature, bulge, build_seconds)
+            record = IndexRecord.from_parts(mesh, curvature, bulge, build_seconds, said)
             cache.save(key, record.to_arrays(), label=p.stem)
             say("trees")
             index = cls(
@@ -368,6 +391,7 @@ class ModelIndex:
                 curvature=curvature,
                 surface=surface,
                 build_seconds=build_seconds,
+                mesh_warnings=said,
             )
         store = DerivedStore(cache.directory, digest, dataclasses.asdict(params), p.stem)
         object.__setattr__(index, "_derived_store", store)
@@ -422,6 +446,7 @@ class ModelIndex:
             surface=surface,
             build_seconds=record.build_seconds,
             from_cache=from_cache,
+            mesh_warnings=record.mesh_warnings,
         )
         if derived is not None:
             object.__setattr__(index, "_derived_store", derived)
@@ -445,5 +470,9 @@ class ModelIndex:
                 f"surface must be an AabbSurface to be cached, got {type(self.surface).__name__}"
             )
         return IndexRecord.from_parts(
-            self.mesh, self.curvature, self.surface.edge_bulge, self.build_seconds
+            self.mesh,
+            self.curvature,
+            self.surface.edge_bulge,
+            self.build_seconds,
+            self.mesh_warnings,
         )

@@ -40,7 +40,7 @@ from meshrec._version import __version__
 from meshrec.model.cache import CacheWarning, default_cache_dir, sweep_abandoned
 from meshrec.model.derived import DerivedStore
 from meshrec.model.index import IndexParams, ModelIndex
-from meshrec.model.mesh import check_mesh_path, read_mesh_file
+from meshrec.model.mesh import MeshWarning, check_mesh_path, read_mesh_file
 from meshrec.model.record import RECORD_VERSION, IndexRecord
 
 __all__ = ["PACK_FORMAT", "file_digests", "load_pack", "pack_dir", "pack_key", "write_pack"]
@@ -219,6 +219,7 @@ def write_pack(
         entry["faces"] = [nf, nf + len(rec.faces)]
         entry["sites"] = [ns, ns + len(rec.points)]
         entry.update({name: getattr(rec, name) for name in _SCALARS})
+        entry["mesh_warnings"] = list(rec.mesh_warnings)
         nv += len(rec.vertices)
         nf += len(rec.faces)
         ns += len(rec.points)
@@ -305,6 +306,11 @@ def load_pack(
     ------
     ValueError
         As :func:`pack_key`.
+
+    Warns
+    -----
+    MeshWarning
+        Each model's mesh warnings from its build (:attr:`ModelIndex.mesh_warnings`).
     """
     t0 = time.perf_counter()
     key = pack_key(files, digests, params)
@@ -328,6 +334,8 @@ def load_pack(
     seconds = (time.perf_counter() - t0) / max(len(models), 1)
     for m in models:
         object.__setattr__(m, "load_seconds", seconds)
+        for text in m.mesh_warnings:  # said again, as for a model's own cache entry
+            warnings.warn(text, MeshWarning, stacklevel=2)
     return models, skipped
 
 
@@ -364,7 +372,8 @@ def _read(folder: Path, key: str, params: IndexParams, stores: dict[str, Derived
         parts = {name: arrays[name][v0:v1] for name in _PER_VERTEX}
         parts.update({name: arrays[name][f0:f1] for name in _PER_FACE})
         parts.update({name: arrays[name][s0:s1] for name in _PER_SITE})
-        record = IndexRecord(**parts, **{name: entry[name] for name in _SCALARS})
+        scalars = {name: entry[name] for name in _SCALARS}
+        record = IndexRecord(**parts, **scalars, mesh_warnings=entry["mesh_warnings"])
         store = stores.get(os.path.realpath(entry["path"]))
         models.append(
             ModelIndex.from_record(entry["path"], params, record, from_cache=True, derived=store)

@@ -9,6 +9,7 @@ part of it: they are rebuilt from it.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -43,6 +44,8 @@ _SITES = (
     "face_patch",
 )
 _ARRAYS = _MESH + _SITES
+#: The array holding the mesh warnings, one JSON string.
+_SAID = "mesh_warnings"
 _SCALARS = (
     "closed",
     "scale",
@@ -73,6 +76,9 @@ class IndexRecord:
     spacing, curvature_radius, range_radius : float
     build_seconds : float
         Time the index took to build.
+    mesh_warnings : tuple of str
+        The :class:`~meshrec.model.mesh.MeshWarning` texts that loading the mesh gave
+        when the index was built (said again whenever the index is loaded from the cache).
 
     Raises
     ------
@@ -104,6 +110,7 @@ class IndexRecord:
     curvature_radius: float
     range_radius: float
     build_seconds: float
+    mesh_warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         def put(name, value):
@@ -144,21 +151,28 @@ class IndexRecord:
             "build_seconds",
         ):
             put(name, float(getattr(self, name)))
+        said = self.mesh_warnings
+        if isinstance(said, str) or not all(isinstance(w, str) for w in said):
+            raise ValueError(f"mesh_warnings must be a sequence of str, got {said!r}")
+        put("mesh_warnings", tuple(said))
 
     # ------------------------------------------------------------------ cache arrays
     @staticmethod
     def names() -> tuple[str, ...]:
         """The names of the arrays :meth:`to_arrays` writes and :meth:`from_arrays` needs."""
-        return _ARRAYS + _SCALARS
+        return _ARRAYS + _SCALARS + (_SAID,)
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The record as named arrays (scalars as 0-d arrays) for the cache.
+        """The record as named arrays (scalars as 0-d arrays, the mesh warnings as one
+        JSON string) for the cache.
 
         Returns
         -------
         dict of str to ndarray
         """
-        return {name: np.asarray(getattr(self, name)) for name in self.names()}
+        out = {name: np.asarray(getattr(self, name)) for name in _ARRAYS + _SCALARS}
+        out[_SAID] = np.array(json.dumps(list(self.mesh_warnings)))
+        return out
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> IndexRecord:
@@ -188,7 +202,13 @@ class IndexRecord:
             if a.size != 1 or a.dtype.kind not in "biuf":
                 raise ValueError(f"{name} must be a single number, got {a.dtype} {a.shape}")
             scalars[name] = a.item()
-        return cls(**{name: arrays[name] for name in _ARRAYS}, **scalars)
+        try:
+            said = json.loads(str(np.asarray(arrays[_SAID])))
+        except ValueError as exc:
+            raise ValueError(f"{_SAID} must be a JSON list of str: {exc}") from None
+        if not isinstance(said, list):
+            raise ValueError(f"{_SAID} must be a JSON list of str, got {said!r}")
+        return cls(**{name: arrays[name] for name in _ARRAYS}, **scalars, mesh_warnings=said)
 
     # ------------------------------------------------------------------ parts
     @classmethod
@@ -198,6 +218,7 @@ class IndexRecord:
         curvature: CurvatureTable,
         edge_bulge: np.ndarray,
         build_seconds: float,
+        mesh_warnings=(),
     ) -> IndexRecord:
         """The record of an index's parts.
 
@@ -208,6 +229,8 @@ class IndexRecord:
         edge_bulge : (m, 3) float
             The smooth surface's bulges (:func:`meshrec.model.surface.edge_bulges`).
         build_seconds : float
+        mesh_warnings : sequence of str
+            The mesh warnings loading the mesh gave.
 
         Returns
         -------
@@ -216,7 +239,8 @@ class IndexRecord:
         Raises
         ------
         ValueError
-            If the parts do not belong to one mesh (their sizes differ).
+            If the parts do not belong to one mesh (their sizes differ), or
+            ``mesh_warnings`` is not a sequence of str.
         """
         return cls(
             vertices=mesh.vertices,
@@ -231,6 +255,7 @@ class IndexRecord:
             curvature_radius=curvature.curvature_radius,
             range_radius=curvature.range_radius,
             build_seconds=build_seconds,
+            mesh_warnings=tuple(mesh_warnings),
         )
 
     def parts(self) -> tuple[MeshData, CurvatureTable, AabbSurface]:
