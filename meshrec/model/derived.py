@@ -45,6 +45,14 @@ _FLOAT_FIELDS = tuple(
     f.name for f in dataclasses.fields(Resolution) if f.name not in ("too_coarse", "reasons")
 )
 
+#: What a store keeps: the names of the ModelIndex properties.
+KINDS = ("resolution", "vertex_scatter", "near_symmetries")
+_NAMES = {
+    "resolution": ("floats", "too_coarse", "reasons"),
+    "vertex_scatter": ("value",),
+    "near_symmetries": ("half_turns", "axes"),
+}
+
 
 def defaults_digest() -> str:
     """SHA-256 of every upper-case value of :mod:`meshrec.defaults`, read now.
@@ -108,15 +116,6 @@ def _decode(what: str, arrays: dict[str, np.ndarray]):
             axes=tuple((np.array(a[0]), np.array(a[1])) for a in axes),
         )
     raise ValueError(f"what must be one of {KINDS}, got {what!r}")
-
-
-#: What a store keeps: the names of the ModelIndex properties.
-KINDS = ("resolution", "vertex_scatter", "near_symmetries")
-_NAMES = {
-    "resolution": ("floats", "too_coarse", "reasons"),
-    "vertex_scatter": ("value",),
-    "near_symmetries": ("half_turns", "axes"),
-}
 
 
 @dataclass(frozen=True)

@@ -166,6 +166,10 @@ class ModelIndex:
         Whether it came from the on-disk cache.
     load_seconds : float
         Wall time of :meth:`from_file` (reading, hashing, cache load or build, trees).
+    derived : DerivedStore or None
+        Where the resolution, vertex scatter and near-symmetries are kept once computed
+        (:mod:`meshrec.model.derived`; :meth:`from_file` and the library pack give one);
+        None: computed once per process.
     mesh_warnings : tuple of str
         The :class:`~meshrec.model.mesh.MeshWarning` texts that loading the mesh gave when
         the index was built; an index loaded from the cache (or a library pack) warns them
@@ -187,7 +191,8 @@ class ModelIndex:
     Raises
     ------
     TypeError
-        If a part has the wrong type.
+        If a part has the wrong type (``derived`` neither a :class:`DerivedStore` nor
+        None, the shared checks' message).
     ValueError
         If the curvature table does not have one patch label per mesh face.
     """
@@ -202,9 +207,11 @@ class ModelIndex:
     from_cache: bool = False
     load_seconds: float = 0.0
     mesh_warnings: tuple[str, ...] = ()
+    derived: DerivedStore | None = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "path", Path(self.path))
+        check_instance(self.derived, DerivedStore, "derived", optional=True)
         for name, kind in (
             ("params", IndexParams),
             ("mesh", MeshData),
@@ -268,8 +275,7 @@ class ModelIndex:
     def _kept(self, what: str, compute):
         """``compute()``, or its value kept on disk by the index's :class:`DerivedStore`
         (:mod:`meshrec.model.derived`) when it has one."""
-        store = self.__dict__.get("_derived_store")
-        return compute() if store is None else store.kept(what, compute)
+        return compute() if self.derived is None else self.derived.kept(what, compute)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -337,13 +343,14 @@ class ModelIndex:
         key = make_key(
             digest, {**dataclasses.asdict(params), "record": RECORD_VERSION}, kind="model-index"
         )
+        store = DerivedStore(cache.directory, digest, dataclasses.asdict(params), p.stem)
         index = None
         if not force:
             arrays = cache.load(key, IndexRecord.names(), label=p.stem)
             if arrays is not None:
                 try:
                     record = IndexRecord.from_arrays(arrays)
-                    index = cls.from_record(p, params, record, from_cache=True)
+                    index = cls.from_record(p, params, record, from_cache=True, derived=store)
                     for text in record.mesh_warnings:
                         warnings.warn(text, MeshWarning, stacklevel=2)
                 except ValueError as exc:
@@ -392,9 +399,8 @@ class ModelIndex:
                 surface=surface,
                 build_seconds=build_seconds,
                 mesh_warnings=said,
+                derived=store,
             )
-        store = DerivedStore(cache.directory, digest, dataclasses.asdict(params), p.stem)
-        object.__setattr__(index, "_derived_store", store)
         object.__setattr__(index, "load_seconds", time.perf_counter() - t0)
         return index
 
@@ -434,10 +440,9 @@ class ModelIndex:
         """
         if not isinstance(record, IndexRecord):
             raise TypeError(f"record must be an IndexRecord, got {type(record).__name__}")
-        check_instance(derived, DerivedStore, "derived", optional=True)
         mesh, curvature, surface = record.parts()
         path = Path(path)
-        index = cls(
+        return cls(
             name=path.stem,
             path=path,
             params=params,
@@ -447,10 +452,8 @@ class ModelIndex:
             build_seconds=record.build_seconds,
             from_cache=from_cache,
             mesh_warnings=record.mesh_warnings,
+            derived=derived,
         )
-        if derived is not None:
-            object.__setattr__(index, "_derived_store", derived)
-        return index
 
     def to_record(self) -> IndexRecord:
         """The cache record of this index.

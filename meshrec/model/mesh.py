@@ -425,8 +425,10 @@ def _warn_degenerate(where, n_read, degenerate, vertices, faces) -> None:
     extent = float(np.abs(vertices).max())
     single = np.array_equal(vertices.astype(np.float32).astype(np.float64), vertices)
     step = float(np.spacing(np.float32(extent)))
-    edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
-    median = float(np.median(edges))
+    median = np.inf  # the edges are measured only for single precision (an STL's)
+    if single:
+        edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
+        median = float(np.median(edges))
     precision = (
         f"its coordinates are single precision (as STL stores them) and reach {extent:.3g}, "
         f"where their steps are {step:.3g}"
